@@ -1,0 +1,49 @@
+# Two commands do all the set-up on a fresh machine: `make demo` and `make test`.
+# A second run reuses the virtual environment and the build (stamp files), starting in seconds.
+
+PYTHON ?= python3
+VENV   := .venv
+BIN    := $(VENV)/bin
+SUDO   := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
+# Debian packages the test suite needs: a virtual X server for the windowed GUI tests, and
+# Mesa's EGL/GL for offscreen rendering.
+DEB_PACKAGES := xvfb libegl1 libgl1-mesa-dri
+EXT_SOURCES  := $(wildcard csrc/*.cpp csrc/*.h) setup.py
+
+.PHONY: all setup system-deps build demo test clean
+
+all: setup
+
+setup: system-deps $(VENV)/.deps-installed $(VENV)/.ext-built
+
+# Installed only when missing.
+system-deps:
+	@missing=$$(for p in $(DEB_PACKAGES); do dpkg -s $$p >/dev/null 2>&1 || echo $$p; done); \
+	if [ -n "$$missing" ]; then \
+		echo "installing Debian packages: $$missing"; \
+		$(SUDO) apt-get update -qq && $(SUDO) apt-get install -y -qq --no-install-recommends $$missing; \
+	fi
+
+$(VENV)/bin/python:
+	$(PYTHON) -m venv $(VENV)
+
+# torch==2.13.0 comes first in requirements.txt so nothing pulls a CUDA build.
+$(VENV)/.deps-installed: requirements.txt pyproject.toml | $(VENV)/bin/python
+	$(BIN)/pip install -q -r requirements.txt
+	touch $@
+
+# The editable install builds edgedog.renderer._C against the environment's torch.
+$(VENV)/.ext-built: $(VENV)/.deps-installed $(EXT_SOURCES)
+	$(BIN)/pip install -q --no-build-isolation --no-deps -e .
+	touch $@
+
+build: $(VENV)/.ext-built
+
+demo: setup
+	$(BIN)/edgedog demo
+
+test: setup
+	$(BIN)/python -m pytest -q
+
+clean:
+	rm -rf $(VENV) build *.egg-info renderer/_C*.so

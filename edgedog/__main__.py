@@ -1,0 +1,7 @@
+"""`python -m edgedog` is the `edgedog` command."""
+
+import sys
+
+from edgedog.cli import main
+
+sys.exit(main())

@@ -1,0 +1,57 @@
+"""`edgedog info SCENE`: what a scene folder holds."""
+
+from __future__ import annotations
+
+import argparse
+
+import numpy as np
+
+from edgedog.commands.scene_args import add_scene_options, open_scene
+from edgedog.scenes import Scene
+
+
+def add_parser(subparsers) -> None:
+    parser = subparsers.add_parser("info", help="print a scene's format, views, edge maps, ground truth",
+                                   description="Print what a scene folder holds.")
+    parser.add_argument("scene", help="scene folder (NeRF/Blender, EMAP, NeuS/DTU or COLMAP)")
+    add_scene_options(parser)
+    parser.set_defaults(run=run)
+
+
+def _masks(scene: Scene) -> str:
+    view = scene.views[0]
+    if view.mask_path is not None:
+        return f"files in {view.mask_path.parent.name}/"
+    return "from the images' alpha" if scene.load_mask(0) is not None else "none"
+
+
+def summary(scene: Scene) -> str:
+    """A few aligned lines describing the scene (reads one image, and the ground truth)."""
+    cam = scene.camera(0)
+    sizes = {(v.camera.width, v.camera.height) for v in scene.views}
+    focal = np.mean([scene.camera(i).K[0, 0] for i in range(len(scene))])
+    lo, hi = scene.bounds
+    rows = [
+        ("scene", f"{scene.root}"),
+        ("format", scene.format),
+        ("views", f"{len(scene)} at {cam.width}x{cam.height}"
+                  + (f" (downscaled {scene.downscale}x)" if scene.downscale > 1 else "")
+                  + ("" if len(sizes) == 1 else f", {len(sizes)} different sizes on disk")),
+        ("mean focal", f"{focal:.1f} px"),
+        ("edge maps", ", ".join(scene.detectors) or "none (compute them with a detector)"),
+        ("masks", _masks(scene)),
+        ("bounds", f"[{lo[0]:.3f}, {lo[1]:.3f}, {lo[2]:.3f}] to [{hi[0]:.3f}, {hi[1]:.3f}, {hi[2]:.3f}]"),
+    ]
+    if scene.sfm_points is not None:
+        rows.append(("sfm points", f"{len(scene.sfm_points)}"))
+    if scene.ground_truth is None:
+        rows.append(("ground truth", "none"))
+    else:
+        points = scene.ground_truth.load()
+        rows.append(("ground truth", f"{len(points)} edge points from {scene.ground_truth.description}"))
+    width = max(len(name) for name, _ in rows)
+    return "\n".join(f"{name:<{width}}  {value}" for name, value in rows)
+
+
+def run(args: argparse.Namespace) -> None:
+    print(summary(open_scene(args.scene, args)))

@@ -1,0 +1,21 @@
+"""Errors users see as one line: which file, and what is wrong with it."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+
+class EdgeDogError(Exception):
+    """Base of the errors the command line reports as a single line (no traceback)."""
+
+
+class InputError(EdgeDogError):
+    """A user's file is missing or malformed.
+
+    The message always names the file first: ``"<path>: <problem>"``.
+    """
+
+    def __init__(self, path: str | Path, problem: str):
+        self.path = Path(path)
+        self.problem = problem
+        super().__init__(f"{self.path}: {problem}")

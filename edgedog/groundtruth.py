@@ -1,0 +1,168 @@
+"""Ground-truth 3D edge points of ABC objects, by the protocol published results use.
+
+Two sources: the CAD model (mesh .obj + feature curves .yml + bbox stats .json), resampled
+here, or a pre-sampled point .ply (EMAP's `sampled_pts/<id>_0.005.ply`). Points are in the
+ground-truth frame: the object normalised into [0, 1]^3, where 1 unit = 1000 "mm".
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import yaml
+from plyfile import PlyData
+
+from edgedog.errors import InputError
+from edgedog.files import read_json
+from edgedog.metrics import sample_line
+
+GT_SPACING = 0.005
+"""Resampling step along each feature curve, in raw CAD units (the protocol's value)."""
+
+
+@dataclass(frozen=True)
+class GroundTruthSource:
+    """Where a scene's ground truth comes from; `load()` builds the points once.
+
+    Attributes:
+        scan_id: the ABC object id, e.g. "00000006".
+        sampled_ply: a pre-sampled point cloud, used when present.
+        obj, features, stats: the CAD files, used otherwise.
+    """
+
+    scan_id: str
+    sampled_ply: Path | None = None
+    obj: Path | None = None
+    features: Path | None = None
+    stats: Path | None = None
+
+    @property
+    def description(self) -> str:
+        if self.sampled_ply is not None:
+            return f"sampled points {self.sampled_ply.name}"
+        return f"CAD curves {self.features.name}"
+
+    def load(self) -> np.ndarray:
+        """(N, 3) float64 ground-truth edge points in the ground-truth frame."""
+        return _load_cached(self)
+
+
+@functools.lru_cache(maxsize=8)
+def _load_cached(source: GroundTruthSource) -> np.ndarray:
+    if source.sampled_ply is not None:
+        points = read_points_ply(source.sampled_ply)
+    else:
+        points = abc_points_from_cad(source.obj, source.features, source.stats, source.scan_id)
+    points.flags.writeable = False  # shared by every caller of the cache
+    return points
+
+
+def read_points_ply(path: Path) -> np.ndarray:
+    """(N, 3) float64 vertex positions of a point-cloud PLY."""
+    try:
+        vertex = PlyData.read(str(path))["vertex"]
+        points = np.stack([vertex["x"], vertex["y"], vertex["z"]], axis=1).astype(np.float64)
+    except FileNotFoundError:
+        raise InputError(path, "file not found") from None
+    except Exception as exc:  # plyfile raises several types for malformed files
+        raise InputError(path, f"not a readable point-cloud PLY ({exc})") from None
+    if not np.all(np.isfinite(points)):
+        raise InputError(path, "points contain NaN or Inf")
+    return points
+
+
+def read_obj_vertices(path: Path) -> np.ndarray:
+    """(V, 3) float64 vertices (`v` records) of a Wavefront OBJ, in file order (0-based)."""
+    try:
+        lines = path.read_text(encoding="utf-8").splitlines()
+    except FileNotFoundError:
+        raise InputError(path, "file not found") from None
+    rows = [line.split()[1:4] for line in lines if line.startswith("v ")]
+    try:
+        vertices = np.array(rows, dtype=np.float64)
+    except ValueError:
+        raise InputError(path, "malformed vertex record") from None
+    if vertices.ndim != 2 or vertices.shape[1] != 3:
+        raise InputError(path, "no vertices with three coordinates")
+    return vertices
+
+
+def normalisation(stats_path: Path, scan_id: str) -> tuple[float, np.ndarray]:
+    """Scale s and offset o with gt = raw * s + o, from the object's bbox statistics.
+
+    The renders put the object in [0, 1]^3: s = 1 / max(range), o = 0.5 - center * s.
+    """
+    stats = read_json(stats_path)
+    if scan_id not in stats or "bbox" not in stats[scan_id]:
+        raise InputError(stats_path, f"no bbox for object {scan_id}")
+    bbox = np.asarray(stats[scan_id]["bbox"], dtype=np.float64)
+    lo, hi, ranges = bbox[0:3], bbox[3:6], bbox[6:9]
+    scale = 1.0 / ranges.max()
+    return scale, 0.5 - (lo + hi) / 2 * scale
+
+
+def resample_polyline(vertices: np.ndarray, spacing: float = GT_SPACING) -> np.ndarray:
+    """The protocol's curve resampling, segment by segment.
+
+    Each segment gets floor(|b - a| / spacing) points with both ends included (segments
+    shorter than `spacing` contribute nothing), exactly as predicted lines are sampled.
+
+    Args:
+        vertices: (M, 3) curve vertices in order.
+    Returns:
+        (N, 3) samples.
+    """
+    pieces = [sample_line(a, b, spacing) for a, b in zip(vertices[:-1], vertices[1:])]
+    return np.concatenate(pieces) if pieces else np.zeros((0, 3))
+
+
+def abc_points_from_cad(obj: Path, features: Path, stats: Path, scan_id: str) -> np.ndarray:
+    """Sample the sharp feature curves of an ABC object into ground-truth points.
+
+    Returns:
+        (N, 3) float64 points in the ground-truth frame.
+    """
+    vertices = read_obj_vertices(obj)
+    try:
+        curves = yaml.load(features.read_text(), Loader=yaml.CSafeLoader)["curves"]
+    except FileNotFoundError:
+        raise InputError(features, "file not found") from None
+    except (yaml.YAMLError, TypeError, KeyError) as exc:
+        raise InputError(features, f"not an ABC features file ({type(exc).__name__})") from None
+    samples = []
+    for number, curve in enumerate(curves):
+        if not curve.get("sharp", False):
+            continue
+        indices = np.asarray(curve["vert_indices"], dtype=np.int64)
+        if indices.size and (indices.min() < 0 or indices.max() >= len(vertices)):
+            raise InputError(features, f"curve {number} indexes vertices outside {obj.name}")
+        samples.append(resample_polyline(vertices[indices]))
+    if not samples:
+        raise InputError(features, "no sharp feature curves")
+    scale, offset = normalisation(stats, scan_id)
+    return np.concatenate(samples) * scale + offset
+
+
+def find_ground_truth(scene_root: Path, scan_id: str) -> GroundTruthSource | None:
+    """Look for an ABC object's ground truth next to a scene folder.
+
+    Searched: `<scene>/gt`, `<scene>/groundtruth`, and `groundtruth/` one and two levels up
+    (the EMAP layout keeps `data/<id>/` beside `groundtruth/`). A pre-sampled
+    `<id>_0.005.ply` wins over the CAD files.
+    """
+    candidates = [scene_root / "gt", scene_root / "groundtruth"]
+    candidates += [parent / "groundtruth" for parent in list(scene_root.parents)[:2]]
+    for folder in (c for c in candidates if c.is_dir()):
+        plys = sorted(folder.glob(f"**/{scan_id}_{GT_SPACING}.ply"))
+        if plys:
+            return GroundTruthSource(scan_id, sampled_ply=plys[0])
+        features = sorted(folder.glob(f"**/{scan_id}*features*.yml"))
+        objs = sorted(folder.glob(f"**/{scan_id}*.obj"))
+        stats = sorted(folder.glob("**/stats.json")) + sorted(folder.glob("**/*_stats.json"))
+        stats = [s for s in stats if f'"{scan_id}"' in s.read_text()]
+        if features and objs and stats:
+            return GroundTruthSource(scan_id, obj=objs[0], features=features[0], stats=stats[0])
+    return None

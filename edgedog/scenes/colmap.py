@@ -1,0 +1,92 @@
+"""COLMAP scenes: a sparse model (`sparse/0/` or `sparse/`, .bin or .txt) read with pycolmap,
+and the photos in `images/`. The SfM points are kept for initialisation.
+
+Only undistorted pinhole cameras are accepted: run `colmap image_undistorter` first.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from edgedog.errors import InputError
+from edgedog.scenes.camera import intrinsics
+from edgedog.scenes.common import bounds_from_cameras, checked_camera, edge_folders, edge_maps_for
+from edgedog.scenes.scene import Scene, View
+
+MODEL_FILES = ("cameras", "images", "points3D")
+
+
+def sparse_folder(root: Path) -> Path | None:
+    """The folder that holds the sparse model's files, or None."""
+    for folder in (root / "sparse" / "0", root / "sparse", root):
+        if all((folder / f"{n}.bin").is_file() or (folder / f"{n}.txt").is_file() for n in MODEL_FILES):
+            return folder
+    return None
+
+
+def is_colmap(root: Path) -> bool:
+    return sparse_folder(root) is not None
+
+
+def _pinhole(camera, model_path: Path) -> np.ndarray:
+    """pycolmap camera -> (3, 3) K in edgedog's convention, or an InputError for distortion."""
+    name, params = camera.model.name, np.asarray(camera.params, dtype=np.float64)
+    if name == "PINHOLE":
+        fx, fy, cx, cy = params
+    elif name == "SIMPLE_PINHOLE":
+        fx, cx, cy = params
+        fy = fx
+    else:
+        raise InputError(
+            model_path,
+            f"camera {camera.camera_id} uses the distorted model {name}; undistort the images "
+            "first (colmap image_undistorter --output_type COLMAP) and load the undistorted folder",
+        )
+    # COLMAP puts the centre of the top-left pixel at (0.5, 0.5); edgedog puts it at (0, 0).
+    return intrinsics(fx, fy, cx - 0.5, cy - 0.5)
+
+
+def load_colmap(root: Path) -> Scene:
+    """Load a COLMAP project folder."""
+    import pycolmap  # heavy: imported only when a COLMAP scene is opened
+
+    model_path = sparse_folder(root)
+    if model_path is None:
+        raise InputError(root, "no COLMAP sparse model (cameras, images, points3D)")
+    try:
+        model = pycolmap.Reconstruction(str(model_path))
+    except ValueError as exc:
+        raise InputError(model_path, f"unreadable COLMAP model ({str(exc).splitlines()[0]})") from None
+    image_folder = root / "images"
+    folders = edge_folders(root)
+    views = []
+    for image_id in sorted(model.reg_image_ids()):
+        image = model.image(image_id)
+        camera = model.camera(image.camera_id)
+        K = _pinhole(camera, model_path)
+        w2c = np.eye(4)
+        w2c[:3, :4] = image.cam_from_world().matrix()
+        where = f"image {image.name}"
+        cam = checked_camera(K, w2c, camera.width, camera.height, model_path, where)
+        stem = Path(image.name).stem
+        views.append(View(stem, cam, image_folder / image.name, edge_maps_for(stem, folders)))
+    if not views:
+        raise InputError(model_path, "the model has no registered images")
+    points = np.array([p.xyz for p in model.points3D.values()], dtype=np.float64).reshape(-1, 3)
+    colors = np.array([p.color for p in model.points3D.values()], dtype=np.uint8).reshape(-1, 3)
+    return Scene(root=root, format="colmap", views=views, bounds=points_bounds(points, views),
+                 sfm_points=points, sfm_colors=colors)
+
+
+def points_bounds(points: np.ndarray, views: list[View], padding: float = 0.1) -> np.ndarray:
+    """(2, 3) robust box of the SfM points (1st to 99th percentile, padded by 10 %).
+
+    With fewer than 10 points, falls back to the cameras' common view region.
+    """
+    if len(points) < 10:
+        return bounds_from_cameras([v.camera for v in views])
+    lo, hi = np.percentile(points, [1, 99], axis=0)
+    pad = (hi - lo) * padding
+    return np.stack([lo - pad, hi + pad])

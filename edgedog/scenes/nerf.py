@@ -1,0 +1,110 @@
+"""NeRF/Blender scenes: `transforms_<split>.json` with OpenGL camera-to-world matrices.
+
+Also the ABC-NEF variant: there `file_path` names the pseudo-edge map (`train/0_colors`) and
+the colour image lives in the sibling folder `train_img/`. Those maps are PiDiNet's unless the
+transforms file names their detector in an `edge_detector` entry (as edgedog's own scenes do).
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from edgedog.errors import InputError
+from edgedog.groundtruth import find_ground_truth
+from edgedog.scenes.camera import intrinsics, w2c_from_opengl_c2w
+from edgedog.scenes.common import (
+    bounds_from_cameras,
+    checked_camera,
+    edge_folders,
+    edge_maps_for,
+    find_image,
+    matrix,
+)
+from edgedog.files import read_json
+from edgedog.scenes.images import read_raw
+from edgedog.scenes.scene import Scene, View
+
+NEF_DETECTOR = "pidinet"
+"""The detector of the maps that ABC-NEF ships in `train/`, when the file names none."""
+
+
+def is_nerf(root: Path) -> bool:
+    return (root / "transforms_train.json").is_file()
+
+
+def _resolve(root: Path, file_path: str, transforms: Path) -> Path:
+    """A frame's `file_path` (suffix optional) -> existing file."""
+    path = (root / file_path).resolve() if not Path(file_path).is_absolute() else Path(file_path)
+    if path.is_file():
+        return path
+    found = find_image(path.parent, path.name)
+    if found is None:
+        raise InputError(transforms, f"frame file {file_path!r} not found (looked in {path.parent})")
+    return found
+
+
+def _intrinsics(meta: dict[str, Any], frame: dict[str, Any], width: int, height: int,
+                transforms: Path, where: str) -> np.ndarray:
+    """Per-frame `camera_intrinsics`, else fl_x/fl_y/cx/cy, else `camera_angle_x`."""
+    if "camera_intrinsics" in frame:
+        return matrix(frame["camera_intrinsics"], (3, 3), transforms, f"{where} camera_intrinsics")
+    merged = {**meta, **frame}
+    if "fl_x" in merged:
+        fx = float(merged["fl_x"])
+        fy = float(merged.get("fl_y", fx))
+    elif "camera_angle_x" in merged:
+        fx = 0.5 * width / math.tan(0.5 * float(merged["camera_angle_x"]))
+        fy = 0.5 * height / math.tan(0.5 * float(merged["camera_angle_y"])) if "camera_angle_y" in merged else fx
+    else:
+        raise InputError(transforms, f"{where}: no camera_angle_x, fl_x or camera_intrinsics")
+    # Pixel centres at integers: the optical centre of a W-wide image is (W - 1) / 2.
+    cx = float(merged.get("cx", (width - 1) / 2))
+    cy = float(merged.get("cy", (height - 1) / 2))
+    return intrinsics(fx, fy, cx, cy)
+
+
+def load_nerf(root: Path, split: str = "train") -> Scene:
+    """Load a NeRF/Blender scene folder."""
+    transforms = root / f"transforms_{split}.json"
+    meta = read_json(transforms)
+    frames = meta.get("frames") if isinstance(meta, dict) else None
+    if not frames:
+        raise InputError(transforms, "no 'frames' list")
+    extra_edges = edge_folders(root)
+    views: list[View] = []
+    size: tuple[int, int] | None = None
+    for number, frame in enumerate(frames):
+        where = f"frame {number}"
+        if "file_path" not in frame or "transform_matrix" not in frame:
+            raise InputError(transforms, f"{where} lacks file_path or transform_matrix")
+        listed = _resolve(root, frame["file_path"], transforms)
+        image_folder = listed.parent.with_name(listed.parent.name + "_img")
+        if image_folder.is_dir():  # ABC-NEF: the listed file is the edge map
+            image_path = find_image(image_folder, listed.stem)
+            if image_path is None:
+                raise InputError(image_folder, f"no image {listed.stem}.* for {where}")
+            edges = {str(meta.get("edge_detector", NEF_DETECTOR)).lower(): listed}
+        else:
+            image_path, edges = listed, {}
+        edges.update(edge_maps_for(listed.stem, extra_edges))
+        if "w" in meta and "h" in meta:
+            size = (int(meta["w"]), int(meta["h"]))
+        elif size is None:  # all frames share the first image's size; each load checks it
+            height, width = read_raw(image_path).shape[:2]
+            size = (width, height)
+        width, height = size
+        c2w = matrix(frame["transform_matrix"], (4, 4), transforms, f"{where} transform_matrix")
+        K = _intrinsics(meta, frame, width, height, transforms, where)
+        camera = checked_camera(K, w2c_from_opengl_c2w(c2w), width, height, transforms, where)
+        views.append(View(name=listed.stem, camera=camera, image_path=image_path, edge_paths=edges))
+    return Scene(
+        root=root,
+        format="nerf",
+        views=views,
+        bounds=bounds_from_cameras([v.camera for v in views]),
+        ground_truth=find_ground_truth(root, root.name),
+    )

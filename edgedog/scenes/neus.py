@@ -1,0 +1,71 @@
+"""NeuS/IDR scenes (DTU, BlendedMVS): `cameras_sphere.npz`, `image/`, `mask/`.
+
+For view i the projection is P = world_mat_i @ scale_mat_i; scale_mat maps the unit sphere,
+which holds the object, to the original world, so the scene's world frame is that sphere.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from edgedog.errors import InputError
+from edgedog.scenes.camera import Camera
+from edgedog.scenes.common import IMAGE_SUFFIXES, checked_camera, edge_folders, edge_maps_for
+from edgedog.scenes.images import read_raw
+from edgedog.scenes.scene import Scene, View
+
+CAMERAS_FILE = "cameras_sphere.npz"
+
+
+def is_neus(root: Path) -> bool:
+    return (root / CAMERAS_FILE).is_file()
+
+
+def decompose_projection(P: np.ndarray, width: int, height: int, path: Path, what: str) -> Camera:
+    """A 3x4 projection K [R | t] -> Camera (K normalised so K[2, 2] = 1)."""
+    if not np.all(np.isfinite(P)):
+        raise InputError(path, f"{what}: projection contains NaN or Inf")
+    K, R, center_h = cv2.decomposeProjectionMatrix(P[:3, :4])[:3]
+    if abs(center_h[3, 0]) < 1e-12:
+        raise InputError(path, f"{what}: projection has its camera centre at infinity")
+    K = K / K[2, 2]
+    center = center_h[:3, 0] / center_h[3, 0]
+    w2c = np.eye(4)
+    w2c[:3, :3] = R
+    w2c[:3, 3] = -R @ center
+    return checked_camera(K, w2c, width, height, path, what)
+
+
+def _sorted_images(folder: Path) -> list[Path]:
+    return sorted(p for p in folder.glob("*") if p.suffix.lower() in IMAGE_SUFFIXES)
+
+
+def load_neus(root: Path) -> Scene:
+    """Load a NeuS/IDR scene folder."""
+    cameras_path = root / CAMERAS_FILE
+    try:
+        cameras = dict(np.load(cameras_path))
+    except Exception as exc:  # numpy raises several types for a corrupt archive
+        raise InputError(cameras_path, f"cannot be read as a .npz archive ({exc})") from None
+    images = _sorted_images(root / "image")
+    if not images:
+        raise InputError(root / "image", "no images found")
+    masks = _sorted_images(root / "mask")
+    if masks and len(masks) != len(images):
+        raise InputError(root / "mask", f"{len(masks)} masks for {len(images)} images")
+    height, width = read_raw(images[0]).shape[:2]
+    folders = edge_folders(root)
+    views = []
+    for i, image_path in enumerate(images):
+        key = f"world_mat_{i}"
+        if key not in cameras:
+            raise InputError(cameras_path, f"no {key} for image {image_path.name}")
+        P = cameras[key] @ cameras.get(f"scale_mat_{i}", np.eye(4))
+        camera = decompose_projection(P, width, height, cameras_path, key)
+        views.append(View(image_path.stem, camera, image_path, edge_maps_for(image_path.stem, folders),
+                          masks[i] if masks else None))
+    return Scene(root=root, format="neus", views=views,
+                 bounds=np.array([[-1.0, -1.0, -1.0], [1.0, 1.0, 1.0]]))

@@ -1,0 +1,123 @@
+"""The one scene type every loader returns: posed views, their files, bounds, ground truth."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from edgedog.errors import InputError
+from edgedog.groundtruth import GroundTruthSource
+from edgedog.scenes.camera import Camera
+from edgedog.scenes.images import Background, as_gray, as_rgb, read_raw, resize_to, to_unit_float
+
+
+@dataclass(frozen=True)
+class View:
+    """One posed image and the files that belong to it.
+
+    Attributes:
+        name: stable identifier (the image file's stem).
+        camera: the camera at the resolution of the files on disk.
+        image_path: the colour image (RGB or RGBA).
+        edge_paths: detector name (lower case, e.g. "pidinet") -> pseudo-edge map file.
+        mask_path: object mask file, if the dataset has one (RGBA images carry their own).
+    """
+
+    name: str
+    camera: Camera
+    image_path: Path
+    edge_paths: Mapping[str, Path] = field(default_factory=dict)
+    mask_path: Path | None = None
+
+
+@dataclass
+class Scene:
+    """A multi-view dataset. Images load lazily, one view at a time.
+
+    Attributes:
+        root: the folder the scene was loaded from.
+        format: "nerf" | "emap" | "neus" | "colmap".
+        views: the training views, cameras at file resolution.
+        bounds: (2, 3) axis-aligned box [min, max] that holds the object, world units.
+        world_to_gt: (4, 4) transform from the world frame to the ground-truth frame.
+        ground_truth: where the ground-truth edge points come from, when the scene has them.
+        sfm_points: (N, 3) structure-from-motion points for initialisation, or None.
+        sfm_colors: (N, 3) uint8 colours of sfm_points, or None.
+        downscale: integer factor applied to images and intrinsics on load.
+        background: what RGBA images are composited on (None drops the alpha channel).
+    """
+
+    root: Path
+    format: str
+    views: list[View]
+    bounds: np.ndarray
+    world_to_gt: np.ndarray = field(default_factory=lambda: np.eye(4))
+    ground_truth: GroundTruthSource | None = None
+    sfm_points: np.ndarray | None = None
+    sfm_colors: np.ndarray | None = None
+    downscale: int = 1
+    background: Background = (0.0, 0.0, 0.0)
+
+    def __len__(self) -> int:
+        return len(self.views)
+
+    @property
+    def detectors(self) -> list[str]:
+        """Detector names that have an edge map for every view."""
+        if not self.views:
+            return []
+        names = set(self.views[0].edge_paths)
+        for view in self.views[1:]:
+            names &= set(view.edge_paths)
+        return sorted(names)
+
+    def camera(self, index: int) -> Camera:
+        """Camera of view `index` at the loaded (downscaled) resolution."""
+        full = self.views[index].camera
+        return full.scaled(full.width // self.downscale, full.height // self.downscale)
+
+    @property
+    def cameras(self) -> list[Camera]:
+        return [self.camera(i) for i in range(len(self.views))]
+
+    def _read(self, path: Path, index: int) -> np.ndarray:
+        """File -> float32 at the loaded resolution, checked against the view's camera."""
+        full, loaded = self.views[index].camera, self.camera(index)
+        image = to_unit_float(read_raw(path, (full.width, full.height)))
+        return resize_to(image, loaded.width, loaded.height)
+
+    def load_image(self, index: int) -> np.ndarray:
+        """(H, W, 3) float32 RGB in [0, 1]."""
+        return as_rgb(self._read(self.views[index].image_path, index), self.background)
+
+    def load_edge_map(self, index: int, detector: str | None = None) -> np.ndarray:
+        """(H, W) float32 pseudo-edge map in [0, 1] (1 = edge).
+
+        Args:
+            detector: which detector's maps; defaults to the first of `detectors`.
+        """
+        view = self.views[index]
+        if detector is None:
+            if not self.detectors:
+                raise InputError(self.root, "the scene has no edge maps; compute them first")
+            detector = self.detectors[0]
+        if detector not in view.edge_paths:
+            raise InputError(
+                self.root,
+                f"no '{detector}' edge map for view {view.name} "
+                f"(available: {', '.join(sorted(view.edge_paths)) or 'none'})",
+            )
+        return as_gray(self._read(view.edge_paths[detector], index))
+
+    def load_mask(self, index: int) -> np.ndarray | None:
+        """(H, W) bool object mask, from the mask file or the image's alpha; None if neither."""
+        view = self.views[index]
+        if view.mask_path is not None:
+            return as_gray(self._read(view.mask_path, index)) > 0.5
+        image = self._read(view.image_path, index)
+        if image.ndim == 3 and image.shape[2] == 4:
+            return image[..., 3] > 0.5
+        return None

@@ -1,0 +1,41 @@
+"""Shared fixtures: the real datasets in ../shared/data (skipped cleanly when absent) and the
+built-in scene generated once per session."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+SHARED_DATA = REPO.parent / "shared" / "data"
+
+
+def shared_path(relative: str) -> Path:
+    """A path under ../shared/data, or skip the test when it is absent."""
+    path = SHARED_DATA / relative
+    if not path.exists():
+        pytest.skip(f"shared data not present: {path}")
+    return path
+
+
+@pytest.fixture(scope="session")
+def abc_nef_scene_dir() -> Path:
+    return shared_path("abc_nef/00000006")
+
+
+@pytest.fixture(scope="session")
+def abc_emap_scene_dir() -> Path:
+    return shared_path("abc_emap/data/00004926")
+
+
+@pytest.fixture(scope="session")
+def dtu_scene_dir() -> Path:
+    return shared_path("dtu_scan37")
+
+
+@pytest.fixture(scope="session")
+def builtin_scene_dir(tmp_path_factory) -> Path:
+    from edgedog.builtin_scene import builtin_scene_path
+
+    return builtin_scene_path(tmp_path_factory.mktemp("cache"))

@@ -1,0 +1,95 @@
+"""The command line, run as a user runs it."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from edgedog.builtin_scene import CORNERS, EDGES
+
+
+def edgedog(*args, cwd=None) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "edgedog", *map(str, args)], cwd=cwd,
+                          capture_output=True, text=True)
+
+
+def test_info_describes_the_scene(builtin_scene_dir):
+    result = edgedog("info", builtin_scene_dir, "--downscale", "2")
+    assert result.returncode == 0, result.stderr
+    assert "format        nerf" in result.stdout
+    assert "50 at 200x200 (downscaled 2x)" in result.stdout
+    assert "edge maps     exact" in result.stdout
+    assert "from the images' alpha" in result.stdout
+    assert "ground truth  10" in result.stdout  # 10xx edge points
+
+
+def test_info_on_a_bad_folder_is_one_line_naming_it(tmp_path):
+    result = edgedog("info", tmp_path)
+    assert result.returncode == 2
+    assert result.stderr.count("\n") == 1
+    assert result.stderr.startswith(f"edgedog: error: {tmp_path}: not a scene folder")
+
+
+def write_obj(path, polylines):
+    lines, offset = [], 1
+    for k, polyline in enumerate(polylines):
+        lines.append(f"o curve_{k}")
+        lines += [f"v {x:.9f} {y:.9f} {z:.9f}" for x, y, z in polyline]
+        lines.append("l " + " ".join(str(offset + i) for i in range(len(polyline))))
+        offset += len(polyline)
+    path.write_text("\n".join(lines) + "\n")
+
+
+def test_eval_of_the_true_edges_scores_perfectly(builtin_scene_dir, tmp_path):
+    pred = tmp_path / "edges.obj"
+    write_obj(pred, [CORNERS[[a, b]] for a, b in EDGES])
+    result = edgedog("eval", pred, "--scene", builtin_scene_dir)
+    assert result.returncode == 0, result.stderr
+    metrics = json.loads((tmp_path / "edges.obj.eval.json").read_text())["metrics"]
+    # Voxel means of samples on a straight edge stay on it: every threshold is met.
+    for tau in (5, 10, 20):
+        assert metrics[f"fscore_{tau}mm"] == 100.0
+    assert metrics["acc_mm"] < 2.5 and metrics["comp_mm"] < 3.0
+    assert "  5mm   100.00   100.00   100.00" in result.stdout
+
+
+def test_eval_of_shifted_edges_with_explicit_gt_and_json_path(builtin_scene_dir, tmp_path):
+    pred = tmp_path / "parametric_edges.json"
+    shift = np.array([0.0, 0.0, 0.015])  # 15 mm up
+    lines = [np.concatenate([CORNERS[a] + shift, CORNERS[b] + shift]).tolist() for a, b in EDGES]
+    pred.write_text(json.dumps({"curves_ctl_pts": [], "lines_end_pts": lines}))
+    gt = builtin_scene_dir / "gt" / "box_0.005.ply"
+    out = tmp_path / "metrics.json"
+    result = edgedog("eval", pred, "--gt", gt, "--json", out, "--no-voxel")
+    assert result.returncode == 0, result.stderr
+    metrics = json.loads(out.read_text())["metrics"]
+    # Horizontal edges move 15 mm away; the four vertical ones slide along themselves.
+    assert metrics["fscore_20mm"] == 100.0
+    assert 0 < metrics["precision_10mm"] < 50
+    assert 5 < metrics["acc_mm"] <= 15.0 + 1e-9
+
+
+def test_eval_rejects_a_truncated_prediction(builtin_scene_dir, tmp_path):
+    pred = tmp_path / "parametric_edges.json"
+    pred.write_text('{"lines_end_pts": [[0, 0, 0, 1, 1')
+    result = edgedog("eval", pred, "--scene", builtin_scene_dir)
+    assert result.returncode == 2
+    assert result.stderr.startswith(f"edgedog: error: {pred}: invalid JSON")
+    assert result.stderr.count("\n") == 1
+
+
+@pytest.mark.parametrize("args", [["--help"], ["info", "--help"], ["eval", "--help"], ["demo", "--help"]])
+def test_help(args):
+    result = edgedog(*args)
+    assert result.returncode == 0 and "usage: edgedog" in result.stdout
+
+
+def test_demo_generates_and_describes_the_builtin_scene(tmp_path):
+    result = edgedog("demo", "--cache", tmp_path)
+    assert result.returncode == 0, result.stderr
+    assert (tmp_path / "scenes" / "box" / "transforms_train.json").is_file()
+    assert "edge maps     exact" in result.stdout
