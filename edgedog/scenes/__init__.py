@@ -29,8 +29,10 @@ FORMATS = (
 
 def detect_format(root: Path) -> str:
     """Name of the scene format of a folder, or an InputError listing what was looked for."""
-    if not root.is_dir():
+    if not root.exists():
         raise InputError(root, "scene folder not found")
+    if not root.is_dir():
+        raise InputError(root, "is a file, not a scene folder")
     for name, test, _ in FORMATS:
         if test(root):
             return name
@@ -50,7 +52,7 @@ def load_scene(path: str | Path, downscale: int = 1,
         downscale: integer factor; images, edge maps, masks and intrinsics are scaled on load.
         background: RGB in [0, 1] that RGBA images are composited on; None drops the alpha.
     """
-    if int(downscale) != downscale or downscale < 1:
+    if not float(downscale).is_integer() or downscale < 1:
         raise ValueError(f"downscale must be a positive integer, got {downscale}")
     root = Path(path).expanduser().resolve()
     name = detect_format(root)

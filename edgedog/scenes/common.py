@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -11,6 +13,20 @@ from edgedog.errors import InputError
 from edgedog.scenes.camera import Camera, intrinsics_problem, pose_problem
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".exr", ".webp")
+
+
+@contextmanager
+def metadata_errors(path: Path) -> Iterator[None]:
+    """Turn a wrongly typed value met while parsing `path` into an InputError naming it.
+
+    Metadata is user data: `float("wide")`, a frame that is a number instead of an object, or
+    a matrix of the wrong size must read as a problem of that file, not as a traceback.
+    """
+    try:
+        yield
+    except (TypeError, ValueError, KeyError, AttributeError, IndexError, ZeroDivisionError) as exc:
+        kind = "missing entry" if isinstance(exc, KeyError) else "wrongly typed value"
+        raise InputError(path, f"{kind} ({type(exc).__name__}: {exc})") from None
 
 
 def matrix(value: Any, shape: tuple[int, ...], path: Path, what: str) -> np.ndarray:

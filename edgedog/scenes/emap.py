@@ -14,7 +14,14 @@ from edgedog.errors import InputError
 from edgedog.groundtruth import find_ground_truth
 from edgedog.scenes.camera import rigid_inverse
 from edgedog.files import read_json
-from edgedog.scenes.common import checked_camera, edge_folders, edge_maps_for, find_image, matrix
+from edgedog.scenes.common import (
+    checked_camera,
+    edge_folders,
+    edge_maps_for,
+    find_image,
+    matrix,
+    metadata_errors,
+)
 from edgedog.scenes.scene import Scene, View
 
 
@@ -32,24 +39,13 @@ def load_emap(root: Path) -> Scene:
         raise InputError(meta_path, "no image 'height' and 'width'")
     if meta.get("camera_model", "OPENCV") not in ("OPENCV", "PINHOLE"):
         raise InputError(meta_path, f"unsupported camera_model {meta['camera_model']!r}")
-    width, height = int(meta["width"]), int(meta["height"])
-    folders = edge_folders(root)
-    views = []
-    for number, frame in enumerate(meta["frames"]):
-        where = f"frame {number}"
-        if "rgb_path" not in frame or "camtoworld" not in frame or "intrinsics" not in frame:
-            raise InputError(meta_path, f"{where} lacks rgb_path, camtoworld or intrinsics")
-        stem = Path(frame["rgb_path"]).stem
-        image_path = find_image(root / "color", stem) or root / "color" / frame["rgb_path"]
-        c2w = matrix(frame["camtoworld"], (4, 4), meta_path, f"{where} camtoworld")
-        K = matrix(frame["intrinsics"], (3, 3), meta_path, f"{where} intrinsics")
-        camera = checked_camera(K, rigid_inverse(c2w), width, height, meta_path, where)
-        views.append(View(stem, camera, image_path, edge_maps_for(stem, folders)))
-    world_to_gt = matrix(meta.get("worldtogt", np.eye(4).tolist()), (4, 4), meta_path, "worldtogt")
+    with metadata_errors(meta_path):
+        views = _views(root, meta_path, meta)
+        world_to_gt = matrix(meta.get("worldtogt", np.eye(4).tolist()), (4, 4), meta_path, "worldtogt")
+        aabb = matrix(meta.get("scene_box", {}).get("aabb", [[-1] * 3, [1] * 3]), (2, 3), meta_path,
+                      "scene_box.aabb")
     if not np.all(np.isfinite(world_to_gt)):
         raise InputError(meta_path, "worldtogt contains NaN or Inf")
-    aabb = matrix(meta.get("scene_box", {}).get("aabb", [[-1] * 3, [1] * 3]), (2, 3), meta_path,
-                  "scene_box.aabb")
     return Scene(
         root=root,
         format="emap",
@@ -58,3 +54,21 @@ def load_emap(root: Path) -> Scene:
         world_to_gt=world_to_gt,
         ground_truth=find_ground_truth(root, root.name),
     )
+
+
+def _views(root: Path, meta_path: Path, meta: dict) -> list[View]:
+    width, height = int(meta["width"]), int(meta["height"])
+    folders = edge_folders(root)
+    views = []
+    for number, frame in enumerate(meta["frames"]):
+        where = f"frame {number}"
+        missing = [k for k in ("rgb_path", "camtoworld", "intrinsics") if k not in frame]
+        if missing:
+            raise InputError(meta_path, f"{where} lacks {', '.join(missing)}")
+        stem = Path(frame["rgb_path"]).stem
+        image_path = find_image(root / "color", stem) or root / "color" / frame["rgb_path"]
+        c2w = matrix(frame["camtoworld"], (4, 4), meta_path, f"{where} camtoworld")
+        K = matrix(frame["intrinsics"], (3, 3), meta_path, f"{where} intrinsics")
+        camera = checked_camera(K, rigid_inverse(c2w), width, height, meta_path, where)
+        views.append(View(stem, camera, image_path, edge_maps_for(stem, folders)))
+    return views

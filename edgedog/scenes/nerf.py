@@ -23,6 +23,7 @@ from edgedog.scenes.common import (
     edge_maps_for,
     find_image,
     matrix,
+    metadata_errors,
 )
 from edgedog.files import read_json
 from edgedog.scenes.images import read_raw
@@ -57,14 +58,22 @@ def _intrinsics(meta: dict[str, Any], frame: dict[str, Any], width: int, height:
         fx = float(merged["fl_x"])
         fy = float(merged.get("fl_y", fx))
     elif "camera_angle_x" in merged:
-        fx = 0.5 * width / math.tan(0.5 * float(merged["camera_angle_x"]))
-        fy = 0.5 * height / math.tan(0.5 * float(merged["camera_angle_y"])) if "camera_angle_y" in merged else fx
+        fx = _focal_from_angle(merged["camera_angle_x"], width, transforms, where)
+        fy = _focal_from_angle(merged["camera_angle_y"], height, transforms, where) \
+            if "camera_angle_y" in merged else fx
     else:
         raise InputError(transforms, f"{where}: no camera_angle_x, fl_x or camera_intrinsics")
     # Pixel centres at integers: the optical centre of a W-wide image is (W - 1) / 2.
     cx = float(merged.get("cx", (width - 1) / 2))
     cy = float(merged.get("cy", (height - 1) / 2))
     return intrinsics(fx, fy, cx, cy)
+
+
+def _focal_from_angle(angle: Any, pixels: int, transforms: Path, where: str) -> float:
+    """Focal length in pixels from a full field-of-view angle in radians."""
+    if not 0 < float(angle) < math.pi:
+        raise InputError(transforms, f"{where}: field of view {angle} is not in (0, pi) radians")
+    return 0.5 * pixels / math.tan(0.5 * float(angle))
 
 
 def load_nerf(root: Path, split: str = "train") -> Scene:
@@ -74,10 +83,22 @@ def load_nerf(root: Path, split: str = "train") -> Scene:
     frames = meta.get("frames") if isinstance(meta, dict) else None
     if not frames:
         raise InputError(transforms, "no 'frames' list")
+    with metadata_errors(transforms):
+        views = _views(root, transforms, meta)
+    return Scene(
+        root=root,
+        format="nerf",
+        views=views,
+        bounds=bounds_from_cameras([v.camera for v in views]),
+        ground_truth=find_ground_truth(root, root.name),
+    )
+
+
+def _views(root: Path, transforms: Path, meta: dict[str, Any]) -> list[View]:
     extra_edges = edge_folders(root)
     views: list[View] = []
     size: tuple[int, int] | None = None
-    for number, frame in enumerate(frames):
+    for number, frame in enumerate(meta["frames"]):
         where = f"frame {number}"
         if "file_path" not in frame or "transform_matrix" not in frame:
             raise InputError(transforms, f"{where} lacks file_path or transform_matrix")
@@ -101,10 +122,4 @@ def load_nerf(root: Path, split: str = "train") -> Scene:
         K = _intrinsics(meta, frame, width, height, transforms, where)
         camera = checked_camera(K, w2c_from_opengl_c2w(c2w), width, height, transforms, where)
         views.append(View(name=listed.stem, camera=camera, image_path=image_path, edge_paths=edges))
-    return Scene(
-        root=root,
-        format="nerf",
-        views=views,
-        bounds=bounds_from_cameras([v.camera for v in views]),
-        ground_truth=find_ground_truth(root, root.name),
-    )
+    return views

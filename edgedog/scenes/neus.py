@@ -6,6 +6,7 @@ which holds the object, to the original world, so the scene's world frame is tha
 
 from __future__ import annotations
 
+import zipfile
 from pathlib import Path
 
 import cv2
@@ -13,7 +14,7 @@ import numpy as np
 
 from edgedog.errors import InputError
 from edgedog.scenes.camera import Camera
-from edgedog.scenes.common import IMAGE_SUFFIXES, checked_camera, edge_folders, edge_maps_for
+from edgedog.scenes.common import IMAGE_SUFFIXES, checked_camera, edge_folders, edge_maps_for, matrix
 from edgedog.scenes.images import read_raw
 from edgedog.scenes.scene import Scene, View
 
@@ -25,13 +26,18 @@ def is_neus(root: Path) -> bool:
 
 
 def decompose_projection(P: np.ndarray, width: int, height: int, path: Path, what: str) -> Camera:
-    """A 3x4 projection K [R | t] -> Camera (K normalised so K[2, 2] = 1)."""
+    """A 3x4 projection K [R | t], defined up to scale, -> Camera (K[2, 2] = 1, positive focals)."""
     if not np.all(np.isfinite(P)):
         raise InputError(path, f"{what}: projection contains NaN or Inf")
-    K, R, center_h = cv2.decomposeProjectionMatrix(P[:3, :4])[:3]
+    # -P is the same camera as P: fix the sign so that the decomposed R is a proper rotation.
+    P = P[:3, :4] * np.sign(np.linalg.det(P[:3, :3]))
+    K, R, center_h = cv2.decomposeProjectionMatrix(P)[:3]
     if abs(center_h[3, 0]) < 1e-12:
         raise InputError(path, f"{what}: projection has its camera centre at infinity")
     K = K / K[2, 2]
+    # The RQ decomposition leaves the signs of K's diagonal free: move them into R.
+    signs = np.diag(np.sign(np.diag(K)))
+    K, R = K @ signs, signs @ R
     center = center_h[:3, 0] / center_h[3, 0]
     w2c = np.eye(4)
     w2c[:3, :3] = R
@@ -46,10 +52,12 @@ def _sorted_images(folder: Path) -> list[Path]:
 def load_neus(root: Path) -> Scene:
     """Load a NeuS/IDR scene folder."""
     cameras_path = root / CAMERAS_FILE
+    if not zipfile.is_zipfile(cameras_path):
+        raise InputError(cameras_path, "not a .npz (zip) archive")
     try:
         cameras = dict(np.load(cameras_path))
-    except Exception as exc:  # numpy raises several types for a corrupt archive
-        raise InputError(cameras_path, f"cannot be read as a .npz archive ({exc})") from None
+    except Exception as exc:  # numpy and zipfile raise several types for a damaged archive
+        raise InputError(cameras_path, f"damaged .npz archive ({type(exc).__name__}: {exc})") from None
     images = _sorted_images(root / "image")
     if not images:
         raise InputError(root / "image", "no images found")
@@ -63,8 +71,9 @@ def load_neus(root: Path) -> Scene:
         key = f"world_mat_{i}"
         if key not in cameras:
             raise InputError(cameras_path, f"no {key} for image {image_path.name}")
-        P = cameras[key] @ cameras.get(f"scale_mat_{i}", np.eye(4))
-        camera = decompose_projection(P, width, height, cameras_path, key)
+        world = matrix(cameras[key], (4, 4), cameras_path, key)
+        scale = matrix(cameras.get(f"scale_mat_{i}", np.eye(4)), (4, 4), cameras_path, f"scale_mat_{i}")
+        camera = decompose_projection(world @ scale, width, height, cameras_path, key)
         views.append(View(image_path.stem, camera, image_path, edge_maps_for(image_path.stem, folders),
                           masks[i] if masks else None))
     return Scene(root=root, format="neus", views=views,
