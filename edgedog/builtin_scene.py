@@ -132,7 +132,8 @@ def write_box_scene(folder: Path, views: int = 50, size: int = 400) -> Path:
         json.dumps({"camera_angle_x": angle_x, "edge_detector": EDGE_DETECTOR, "frames": frames}, indent=1))
     vertices = np.array([tuple(p) for p in ground_truth_points()],
                         dtype=[("x", "f8"), ("y", "f8"), ("z", "f8")])
-    PlyData([PlyElement.describe(vertices, "vertex")]).write(str(tmp / "gt" / f"{folder.name}_{GT_SPACING}.ply"))
+    gt_file = tmp / "gt" / f"{folder.name}_{GT_SPACING}.ply"
+    PlyData([PlyElement.describe(vertices, "vertex")]).write(str(gt_file))
     shutil.rmtree(folder, ignore_errors=True)
     tmp.rename(folder)
     return folder

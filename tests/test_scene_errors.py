@@ -7,13 +7,13 @@ tests need no shared data.
 from __future__ import annotations
 
 import json
-import math
 import zlib
 from pathlib import Path
 
 import cv2
 import numpy as np
 import pytest
+from scene_builders import circle_c2ws
 
 from edgedog.errors import EdgeDogError, InputError
 from edgedog.scenes import detect_format, load_scene
@@ -38,27 +38,6 @@ def assert_one_line(err: BaseException, path: Path, *words: str) -> str:
     for word in words:
         assert word.lower() in message.lower(), f"{word!r} not in {message!r}"
     return message
-
-
-def look_at_gl(position, target, up=(0.0, 0.0, 1.0)) -> np.ndarray:
-    """(4, 4) OpenGL camera-to-world (looks down -Z, +Y up) at `position` looking at `target`."""
-    position, target = np.asarray(position, float), np.asarray(target, float)
-    forward = target - position
-    forward /= np.linalg.norm(forward)
-    right = np.cross(forward, up)
-    right /= np.linalg.norm(right)
-    true_up = np.cross(right, forward)
-    c2w = np.eye(4)
-    c2w[:3, 0], c2w[:3, 1], c2w[:3, 2], c2w[:3, 3] = right, true_up, -forward, position
-    return c2w
-
-
-def circle_c2ws(count: int, target=(0.0, 0.0, 0.0), radius: float = 3.0) -> list[np.ndarray]:
-    target = np.asarray(target, float)
-    return [
-        look_at_gl(target + [radius * math.cos(a), radius * math.sin(a), 1.0], target)
-        for a in np.linspace(0.0, 2 * math.pi, count, endpoint=False)
-    ]
 
 
 def write_png(path: Path, width: int = SIZE, height: int = SIZE, channels: int = 3) -> Path:

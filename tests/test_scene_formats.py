@@ -14,37 +14,15 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
+from conftest import shared_path
+from scene_builders import circle_c2ws
 
 from edgedog.scenes import load_scene
-
-SHARED_DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 
 FLIP = np.diag([1.0, -1.0, -1.0, 1.0])  # OpenGL <-> OpenCV camera frame
 
 
 # --- helpers -----------------------------------------------------------------------------------
-
-
-def look_at_gl(position, target, up=(0.0, 0.0, 1.0)) -> np.ndarray:
-    """(4, 4) OpenGL camera-to-world (looks down -Z, +Y up) at `position` looking at `target`."""
-    position, target = np.asarray(position, float), np.asarray(target, float)
-    forward = target - position
-    forward /= np.linalg.norm(forward)
-    right = np.cross(forward, up)
-    right /= np.linalg.norm(right)
-    true_up = np.cross(right, forward)
-    c2w = np.eye(4)
-    c2w[:3, 0], c2w[:3, 1], c2w[:3, 2], c2w[:3, 3] = right, true_up, -forward, position
-    return c2w
-
-
-def circle_c2ws(count: int, target, radius: float = 3.0, height: float = 1.0) -> list[np.ndarray]:
-    """OpenGL camera-to-world matrices of cameras on a circle around `target`, looking at it."""
-    target = np.asarray(target, float)
-    return [
-        look_at_gl(target + [radius * math.cos(a), radius * math.sin(a), height], target)
-        for a in np.linspace(0.3, 0.3 + 2 * math.pi, count, endpoint=False)
-    ]
 
 
 def w2c_cv(c2w_gl: np.ndarray) -> np.ndarray:
@@ -65,12 +43,6 @@ def write_image(path: Path, rgb_or_rgba: np.ndarray) -> Path:
 
 def random_image(shape, seed: int) -> np.ndarray:
     return np.random.default_rng(seed).integers(0, 256, shape, dtype=np.uint8)
-
-
-def need(path: Path) -> Path:
-    if not path.exists():
-        pytest.skip(f"shared data not available: {path}")
-    return path
 
 
 # --- NeRF / Blender ----------------------------------------------------------------------------
@@ -420,7 +392,7 @@ def test_colmap(tmp_path, model, binary):
 
 @pytest.mark.shared_data
 def test_real_abc_nef():
-    root = need(SHARED_DATA / "abc_nef" / "00000006")
+    root = shared_path("abc_nef/00000006")
     scene = load_scene(root)
     assert scene.format == "nerf"
     assert len(scene) == 50
@@ -441,7 +413,7 @@ def test_real_abc_nef():
 
 @pytest.mark.shared_data
 def test_real_abc_emap():
-    root = need(SHARED_DATA / "abc_emap" / "data" / "00004926")
+    root = shared_path("abc_emap/data/00004926")
     scene = load_scene(root)
     assert scene.format == "emap"
     assert len(scene) == 50
@@ -452,7 +424,7 @@ def test_real_abc_emap():
 
 @pytest.mark.shared_data
 def test_real_dtu():
-    root = need(SHARED_DATA / "dtu_scan37")
+    root = shared_path("dtu_scan37")
     scene = load_scene(root)
     assert scene.format == "neus"
     assert len(scene) == 49

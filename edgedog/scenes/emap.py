@@ -11,9 +11,9 @@ from pathlib import Path
 import numpy as np
 
 from edgedog.errors import InputError
+from edgedog.files import read_json
 from edgedog.groundtruth import find_ground_truth
 from edgedog.scenes.camera import rigid_inverse
-from edgedog.files import read_json
 from edgedog.scenes.common import (
     checked_camera,
     edge_folders,

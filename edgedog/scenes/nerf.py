@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from edgedog.errors import InputError
+from edgedog.files import read_json
 from edgedog.groundtruth import find_ground_truth
 from edgedog.scenes.camera import intrinsics, w2c_from_opengl_c2w
 from edgedog.scenes.common import (
@@ -25,7 +26,6 @@ from edgedog.scenes.common import (
     matrix,
     metadata_errors,
 )
-from edgedog.files import read_json
 from edgedog.scenes.images import read_raw
 from edgedog.scenes.scene import Scene, View
 
