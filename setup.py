@@ -17,7 +17,8 @@ setup(
             name="edgedog.renderer._C",
             sources=SOURCES,
             include_dirs=[str(ROOT / "csrc")],
-            extra_compile_args=["-O3", "-fopenmp", "-std=c++17"],
+            # fp-contract off: forward and backward must compute bit-identical alphas.
+            extra_compile_args=["-O3", "-fopenmp", "-std=c++17", "-ffp-contract=off"],
             extra_link_args=["-fopenmp"],
         )
     ],

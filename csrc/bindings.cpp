@@ -1,11 +1,224 @@
-// The one translation unit that includes torch/extension.h: it only binds the kernels
-// declared in the plain-C++ headers of csrc/ to Python as `edgedog.renderer._C`.
+// The one translation unit that includes torch/extension.h: it checks tensors, allocates
+// outputs and binds the plain-C++ kernels of csrc/ to Python as `edgedog.renderer._C`.
 #include <torch/extension.h>
 
+#include <malloc.h>
+
+#include <string>
+
 #include "build_info.h"
+#include "constants.h"
+#include "project.h"
+#include "rasterize.h"
+#include "tiles.h"
+
+namespace {
+
+using torch::Tensor;
+
+void check_float(const Tensor& t, const char* name, std::vector<int64_t> shape) {
+  TORCH_CHECK(t.device().is_cpu(), name, " must be a CPU tensor");
+  TORCH_CHECK(t.scalar_type() == torch::kFloat32, name, " must be float32, got ", t.scalar_type());
+  TORCH_CHECK(t.is_contiguous(), name, " must be contiguous");
+  TORCH_CHECK(t.dim() == int64_t(shape.size()), name, " must have ", shape.size(), " dimensions");
+  for (size_t k = 0; k < shape.size(); ++k) {
+    TORCH_CHECK(shape[k] < 0 || t.size(k) == shape[k], name, " has size ", t.size(k), " in dimension ",
+                k, ", expected ", shape[k]);
+  }
+}
+
+edgedog::PinholeCamera camera_from(const Tensor& K, const Tensor& w2c, int64_t width, int64_t height,
+                                   double near) {
+  TORCH_CHECK(K.sizes() == torch::IntArrayRef({3, 3}), "K must be 3x3");
+  TORCH_CHECK(w2c.sizes() == torch::IntArrayRef({4, 4}), "w2c must be 4x4");
+  TORCH_CHECK(width > 0 && height > 0, "image size must be positive");
+  const auto k = K.to(torch::kFloat64).contiguous();
+  const auto m = w2c.to(torch::kFloat64).contiguous();
+  const double* kp = k.data_ptr<double>();
+  const double* mp = m.data_ptr<double>();
+  edgedog::PinholeCamera cam{};
+  cam.fx = kp[0];
+  cam.fy = kp[4];
+  cam.cx = kp[2];
+  cam.cy = kp[5];
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) cam.R[3 * r + c] = mp[4 * r + c];
+    cam.t[r] = mp[4 * r + 3];
+  }
+  cam.width = int(width);
+  cam.height = int(height);
+  cam.near = near;
+  return cam;
+}
+
+edgedog::ProjectInputs project_inputs(const Tensor& means, const Tensor& scales, const Tensor& quats,
+                                      const Tensor& support_q, double eps2d) {
+  const int64_t n = means.size(0);
+  check_float(means, "means", {n, 3});
+  check_float(scales, "scales", {n, 3});
+  check_float(quats, "quats", {n, 4});
+  check_float(support_q, "support_q", {n});
+  return {n, means.data_ptr<float>(), scales.data_ptr<float>(), quats.data_ptr<float>(),
+          support_q.data_ptr<float>(), eps2d};
+}
+
+std::vector<Tensor> project_forward(Tensor means, Tensor scales, Tensor quats, Tensor support_q, Tensor K,
+                                    Tensor w2c, int64_t width, int64_t height, double near, double eps2d) {
+  const auto in = project_inputs(means, scales, quats, support_q, eps2d);
+  const auto cam = camera_from(K, w2c, width, height, near);
+  auto f = means.options();
+  Tensor means2d = torch::empty({in.n, 2}, f), conics = torch::empty({in.n, 3}, f);
+  Tensor depths = torch::empty({in.n}, f), extents = torch::empty({in.n, 2}, f);
+  Tensor valid = torch::empty({in.n}, f.dtype(torch::kBool));
+  edgedog::project_forward(cam, in, {means2d.data_ptr<float>(), conics.data_ptr<float>(),
+                                     depths.data_ptr<float>(), extents.data_ptr<float>(),
+                                     reinterpret_cast<uint8_t*>(valid.data_ptr<bool>())});
+  return {means2d, conics, depths, extents, valid};
+}
+
+std::vector<Tensor> project_backward(Tensor means, Tensor scales, Tensor quats, Tensor support_q, Tensor K,
+                                     Tensor w2c, int64_t width, int64_t height, double near, double eps2d,
+                                     Tensor g_means2d, Tensor g_conics, Tensor g_depths) {
+  const auto in = project_inputs(means, scales, quats, support_q, eps2d);
+  const auto cam = camera_from(K, w2c, width, height, near);
+  check_float(g_means2d, "grad means2d", {in.n, 2});
+  check_float(g_conics, "grad conics", {in.n, 3});
+  check_float(g_depths, "grad depths", {in.n});
+  Tensor g_means = torch::empty_like(means), g_scales = torch::empty_like(scales);
+  Tensor g_quats = torch::empty_like(quats);
+  edgedog::project_backward(cam, in,
+                            {g_means2d.data_ptr<float>(), g_conics.data_ptr<float>(), g_depths.data_ptr<float>()},
+                            {g_means.data_ptr<float>(), g_scales.data_ptr<float>(), g_quats.data_ptr<float>()});
+  return {g_means, g_scales, g_quats};
+}
+
+std::vector<Tensor> tile_lists(Tensor means2d, Tensor extents, Tensor depths, Tensor valid, int64_t width,
+                               int64_t height) {
+  const int64_t n = means2d.size(0);
+  check_float(means2d, "means2d", {n, 2});
+  check_float(extents, "extents", {n, 2});
+  check_float(depths, "depths", {n});
+  TORCH_CHECK(valid.scalar_type() == torch::kBool && valid.is_contiguous() && valid.numel() == n,
+              "valid must be a contiguous bool tensor of n entries");
+  const auto lists = edgedog::build_tile_lists(n, means2d.data_ptr<float>(), extents.data_ptr<float>(),
+                                               depths.data_ptr<float>(),
+                                               reinterpret_cast<const uint8_t*>(valid.data_ptr<bool>()),
+                                               int(width), int(height));
+  auto i32 = torch::TensorOptions().dtype(torch::kInt32);
+  Tensor offsets = torch::empty({int64_t(lists.offsets.size())}, i32);
+  Tensor ids = torch::empty({int64_t(lists.ids.size())}, i32);
+  std::copy(lists.offsets.begin(), lists.offsets.end(), offsets.data_ptr<int32_t>());
+  std::copy(lists.ids.begin(), lists.ids.end(), ids.data_ptr<int32_t>());
+  return {offsets, ids};
+}
+
+struct SplatArgs {
+  edgedog::Splats splats;
+  edgedog::Frame frame;
+  edgedog::TileView tiles;
+};
+
+SplatArgs splat_args(const Tensor& means2d, const Tensor& conics, const Tensor& opacity, const Tensor& a,
+                     const Tensor& t, const Tensor& support, const Tensor& extents, const Tensor& colors,
+                     const Tensor& depths, const Tensor& offsets, const Tensor& ids, int64_t width,
+                     int64_t height, const c10::optional<Tensor>& background) {
+  const int64_t n = means2d.size(0);
+  check_float(means2d, "means2d", {n, 2});
+  check_float(conics, "conics", {n, 3});
+  check_float(opacity, "opacity", {n});
+  check_float(a, "a", {n});
+  check_float(t, "t", {n});
+  check_float(support, "support", {n});
+  check_float(extents, "extents", {n, 2});
+  check_float(colors, "colors", {n, -1});
+  check_float(depths, "depths", {n});
+  const int64_t C = colors.size(1);
+  TORCH_CHECK(C >= 1, "colors need at least one channel");
+  const int tiles_x = int((width + edgedog::kTileSize - 1) / edgedog::kTileSize);
+  const int tiles_y = int((height + edgedog::kTileSize - 1) / edgedog::kTileSize);
+  TORCH_CHECK(offsets.scalar_type() == torch::kInt32 && offsets.is_contiguous() &&
+                  offsets.numel() == int64_t(tiles_x) * tiles_y + 1,
+              "tile offsets do not match the image size");
+  TORCH_CHECK(ids.scalar_type() == torch::kInt32 && ids.is_contiguous(), "tile ids must be int32");
+  const float* bg = nullptr;
+  if (background.has_value()) {
+    check_float(*background, "background", {C});
+    bg = background->data_ptr<float>();
+  }
+  return {{n, int(C), means2d.data_ptr<float>(), conics.data_ptr<float>(), opacity.data_ptr<float>(),
+           a.data_ptr<float>(), t.data_ptr<float>(), support.data_ptr<float>(), extents.data_ptr<float>(),
+           colors.data_ptr<float>(), depths.data_ptr<float>()},
+          {int(width), int(height), bg},
+          {tiles_x, tiles_y, offsets.data_ptr<int32_t>(), ids.data_ptr<int32_t>()}};
+}
+
+std::vector<Tensor> rasterize_forward(Tensor means2d, Tensor conics, Tensor opacity, Tensor a, Tensor t,
+                                      Tensor support, Tensor extents, Tensor colors, Tensor depths,
+                                      Tensor offsets, Tensor ids, int64_t width, int64_t height,
+                                      c10::optional<Tensor> background) {
+  const auto args = splat_args(means2d, conics, opacity, a, t, support, extents, colors, depths, offsets, ids,
+                               width, height, background);
+  auto f = means2d.options();
+  Tensor image = torch::empty({height, width, colors.size(1)}, f);
+  Tensor alpha = torch::empty({height, width}, f), depth = torch::empty({height, width}, f);
+  Tensor final_T = torch::empty({height, width}, f);
+  Tensor last = torch::empty({height, width}, f.dtype(torch::kInt32));
+  edgedog::rasterize_forward(args.splats, args.frame, args.tiles,
+                             {image.data_ptr<float>(), alpha.data_ptr<float>(), depth.data_ptr<float>(),
+                              final_T.data_ptr<float>(), last.data_ptr<int32_t>()});
+  return {image, alpha, depth, final_T, last};
+}
+
+void check_state(const Tensor& final_T, const Tensor& last, int64_t width, int64_t height) {
+  check_float(final_T, "final_T", {height, width});
+  TORCH_CHECK(last.scalar_type() == torch::kInt32 && last.is_contiguous() && last.numel() == width * height,
+              "last must be a contiguous int32 (H, W) tensor");
+}
+
+std::vector<Tensor> rasterize_backward(Tensor means2d, Tensor conics, Tensor opacity, Tensor a, Tensor t,
+                                       Tensor support, Tensor extents, Tensor colors, Tensor depths,
+                                       Tensor offsets, Tensor ids, int64_t width, int64_t height,
+                                       c10::optional<Tensor> background, Tensor final_T, Tensor last,
+                                       Tensor g_image, Tensor g_alpha, Tensor g_depth) {
+  const auto args = splat_args(means2d, conics, opacity, a, t, support, extents, colors, depths, offsets, ids,
+                               width, height, background);
+  check_state(final_T, last, width, height);
+  check_float(g_image, "grad image", {height, width, colors.size(1)});
+  check_float(g_alpha, "grad alpha", {height, width});
+  check_float(g_depth, "grad depth", {height, width});
+  Tensor gm = torch::empty_like(means2d), gc = torch::empty_like(conics), go = torch::empty_like(opacity);
+  Tensor ga = torch::empty_like(a), gt = torch::empty_like(t), gcol = torch::empty_like(colors);
+  Tensor gd = torch::empty_like(depths);
+  edgedog::rasterize_backward(args.splats, args.frame, args.tiles, final_T.data_ptr<float>(),
+                              last.data_ptr<int32_t>(),
+                              {g_image.data_ptr<float>(), g_alpha.data_ptr<float>(), g_depth.data_ptr<float>()},
+                              {gm.data_ptr<float>(), gc.data_ptr<float>(), go.data_ptr<float>(),
+                               ga.data_ptr<float>(), gt.data_ptr<float>(), gcol.data_ptr<float>(),
+                               gd.data_ptr<float>()});
+  return {gm, gc, go, ga, gt, gcol, gd};
+}
+
+void rasterize_fisher(Tensor means2d, Tensor conics, Tensor opacity, Tensor a, Tensor t, Tensor support,
+                      Tensor extents, Tensor colors, Tensor depths, Tensor offsets, Tensor ids, int64_t width,
+                      int64_t height, c10::optional<Tensor> background, Tensor final_T, Tensor last,
+                      Tensor fisher) {
+  const auto args = splat_args(means2d, conics, opacity, a, t, support, extents, colors, depths, offsets, ids,
+                               width, height, background);
+  check_state(final_T, last, width, height);
+  check_float(fisher, "fisher", {means2d.size(0)});
+  edgedog::rasterize_fisher(args.splats, args.frame, args.tiles, final_T.data_ptr<float>(),
+                            last.data_ptr<int32_t>(), fisher.data_ptr<float>());
+}
+
+}  // namespace
 
 PYBIND11_MODULE(TORCH_EXTENSION_NAME, m) {
   m.doc() = "EdgeDoG CPU kernels";
+  // Every render allocates a few image-sized tensors. glibc serves blocks above its mmap
+  // threshold with fresh pages, and page faults on them cost as much as the rendering itself:
+  // keep such blocks on the heap, where they are reused from one step to the next.
+  mallopt(M_MMAP_THRESHOLD, 256 << 20);
+  mallopt(M_TRIM_THRESHOLD, 512 << 20);
   m.def(
       "build_info",
       []() {
@@ -17,4 +230,19 @@ PYBIND11_MODULE(TORCH_EXTENSION_NAME, m) {
         return d;
       },
       "Build facts: OpenMP on or off, its thread count, the compiler.");
+  m.def("constants", []() {
+    pybind11::dict d;
+    d["tile_size"] = edgedog::kTileSize;
+    d["alpha_min"] = edgedog::kAlphaMin;
+    d["alpha_max"] = edgedog::kAlphaMax;
+    d["early_stop_t"] = edgedog::kEarlyStopT;
+    d["frustum_slack"] = edgedog::kFrustumSlack;
+    return d;
+  }, "The kernels' constants, to check them against renderer/config.py.");
+  m.def("project_forward", &project_forward);
+  m.def("project_backward", &project_backward);
+  m.def("tile_lists", &tile_lists);
+  m.def("rasterize_forward", &rasterize_forward);
+  m.def("rasterize_backward", &rasterize_backward);
+  m.def("rasterize_fisher", &rasterize_fisher);
 }

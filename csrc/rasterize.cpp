@@ -1,0 +1,314 @@
+#include "rasterize.h"
+
+#include <omp.h>
+
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
+#include "constants.h"
+#include "dog_profile.h"
+
+namespace edgedog {
+namespace {
+
+constexpr int kTilePixels = kTileSize * kTileSize;
+
+// One primitive, clipped to the pixels of one tile that its support ellipse can reach.
+struct Footprint {
+  float mx, my, A, B, C, inv_2a, u_cut, opacity, t;
+  int x0, x1, y0, y1;  // inclusive pixel range inside the tile; empty when x0 > x1
+};
+
+struct Tile {
+  int x0, y0, width, height;  // pixel origin and size (edge tiles are smaller)
+};
+
+Tile tile_at(const TileView& tiles, int index, const Frame& f) {
+  const int x0 = (index % tiles.tiles_x) * kTileSize;
+  const int y0 = (index / tiles.tiles_x) * kTileSize;
+  return {x0, y0, std::min(kTileSize, f.width - x0), std::min(kTileSize, f.height - y0)};
+}
+
+Footprint footprint(const Splats& s, int32_t i, const Tile& tile) {
+  Footprint fp;
+  fp.mx = s.means2d[2 * i];
+  fp.my = s.means2d[2 * i + 1];
+  fp.A = s.conics[3 * i];
+  fp.B = s.conics[3 * i + 1];
+  fp.C = s.conics[3 * i + 2];
+  fp.inv_2a = 0.5f / s.a[i];
+  fp.u_cut = s.support[i];
+  fp.opacity = s.opacity[i];
+  fp.t = s.t[i];
+  const float ex = s.extents[2 * i], ey = s.extents[2 * i + 1];
+  fp.x0 = int(std::max(std::ceil(fp.mx - ex), float(tile.x0)));
+  fp.x1 = int(std::min(std::floor(fp.mx + ex), float(tile.x0 + tile.width - 1)));
+  fp.y0 = int(std::max(std::ceil(fp.my - ey), float(tile.y0)));
+  fp.y1 = int(std::min(std::floor(fp.my + ey), float(tile.y0 + tile.height - 1)));
+  return fp;
+}
+
+// Alpha of a footprint at pixel (px, py), or false when the primitive is skipped there. The
+// forward and backward passes call this same function, so they skip the same pixels.
+struct PixelHit {
+  float dx, dy, u, D, alpha;
+  bool clamped;  // alpha hit kAlphaMax: no gradient through the footprint
+};
+
+inline bool hit_pixel(const Footprint& fp, int px, int py, PixelHit& h) {
+  h.dx = float(px) - fp.mx;
+  h.dy = float(py) - fp.my;
+  const float q = fp.A * h.dx * h.dx + 2.f * fp.B * h.dx * h.dy + fp.C * h.dy * h.dy;
+  h.u = q * fp.inv_2a;
+  if (!(h.u <= fp.u_cut)) return false;
+  h.D = dog_value(h.u, fp.t);
+  const float raw = fp.opacity * h.D;
+  h.clamped = raw > kAlphaMax;
+  h.alpha = h.clamped ? kAlphaMax : raw;
+  return h.alpha >= kAlphaMin;
+}
+
+// Per-thread gradient buffers, reduced at the end: tiles touch primitives in any order.
+struct ThreadBuffers {
+  int threads;
+  int64_t stride;
+  std::vector<float> data;
+  ThreadBuffers(int threads, int64_t n, int64_t per_primitive)
+      : threads(threads), stride(n * per_primitive), data(size_t(threads) * n * per_primitive, 0.f) {}
+  float* of(int thread) { return data.data() + thread * stride; }
+  // Sums every thread's buffer into the first one and returns it.
+  const float* reduce() {
+    float* first = of(0);
+#pragma omp parallel for schedule(static)
+    for (int64_t k = 0; k < stride; ++k) {
+      for (int th = 1; th < threads; ++th) first[k] += of(th)[k];
+    }
+    return first;
+  }
+};
+
+void write_empty_tile(const Tile& tile, const Frame& f, int C, const RasterOutputs& out) {
+  for (int y = 0; y < tile.height; ++y) {
+    const int64_t row = int64_t(tile.y0 + y) * f.width + tile.x0;
+    std::fill(out.alpha + row, out.alpha + row + tile.width, 0.f);
+    std::fill(out.depth + row, out.depth + row + tile.width, 0.f);
+    std::fill(out.final_T + row, out.final_T + row + tile.width, 1.f);
+    std::fill(out.last + row, out.last + row + tile.width, 0);
+    if (f.background == nullptr) {
+      std::fill(out.image + row * C, out.image + (row + tile.width) * C, 0.f);
+    } else {
+      for (int x = 0; x < tile.width; ++x) std::copy(f.background, f.background + C, out.image + (row + x) * C);
+    }
+  }
+}
+
+}  // namespace
+
+void rasterize_forward(const Splats& s, const Frame& f, const TileView& tiles, const RasterOutputs& out) {
+  const int num_tiles = tiles.tiles_x * tiles.tiles_y;
+  const int C = s.channels;
+#pragma omp parallel
+  {
+    std::vector<float> T(kTilePixels), color(kTilePixels * C), depth(kTilePixels);
+    std::vector<int32_t> last(kTilePixels);
+    std::vector<uint8_t> done(kTilePixels);
+#pragma omp for schedule(dynamic, 4)
+    for (int index = 0; index < num_tiles; ++index) {
+      const Tile tile = tile_at(tiles, index, f);
+      const int begin = tiles.offsets[index], end = tiles.offsets[index + 1];
+      if (begin == end) {  // most tiles of an edge render are empty: write the background
+        write_empty_tile(tile, f, C, out);
+        continue;
+      }
+      std::fill(T.begin(), T.end(), 1.f);
+      std::fill(color.begin(), color.end(), 0.f);
+      std::fill(depth.begin(), depth.end(), 0.f);
+      std::fill(last.begin(), last.end(), 0);
+      std::fill(done.begin(), done.end(), 0);
+      int active = tile.width * tile.height;
+      for (int k = begin; k < end && active > 0; ++k) {
+        const int32_t i = tiles.ids[k];
+        const Footprint fp = footprint(s, i, tile);
+        const float* c = s.colors + int64_t(i) * C;
+        for (int py = fp.y0; py <= fp.y1; ++py) {
+          for (int px = fp.x0; px <= fp.x1; ++px) {
+            const int p = (py - tile.y0) * kTileSize + (px - tile.x0);
+            PixelHit h;
+            if (done[p] || !hit_pixel(fp, px, py, h)) continue;
+            const float next_T = T[p] * (1.f - h.alpha);
+            if (next_T < kEarlyStopT) {
+              done[p] = 1;
+              --active;
+              continue;
+            }
+            const float w = h.alpha * T[p];
+            for (int ch = 0; ch < C; ++ch) color[p * C + ch] += w * c[ch];
+            depth[p] += w * s.depths[i];
+            T[p] = next_T;
+            last[p] = k - begin + 1;
+          }
+        }
+      }
+      for (int y = 0; y < tile.height; ++y) {
+        for (int x = 0; x < tile.width; ++x) {
+          const int p = y * kTileSize + x;
+          const int64_t pix = int64_t(tile.y0 + y) * f.width + tile.x0 + x;
+          for (int ch = 0; ch < C; ++ch) {
+            out.image[pix * C + ch] = color[p * C + ch] + (f.background ? T[p] * f.background[ch] : 0.f);
+          }
+          out.alpha[pix] = 1.f - T[p];
+          out.depth[pix] = depth[p];
+          out.final_T[pix] = T[p];
+          out.last[pix] = last[p];
+        }
+      }
+    }
+  }
+}
+
+namespace {
+
+// Walks one tile back to front, recovering each pixel's transmittance before every primitive
+// it used and the colour, depth and alpha composited behind it. `visit(i, fp, h, p, T,
+// behind_color, behind_depth, behind_alpha)` sees each (primitive, pixel) that the forward pass
+// composited, before the "behind" accumulators absorb that primitive.
+template <typename Visit>
+void walk_tile_backwards(const Splats& s, const Frame& f, const TileView& tiles, int index,
+                         const float* final_T, const int32_t* last, Visit&& visit) {
+  const int C = s.channels;
+  const int begin = tiles.offsets[index];
+  if (begin == tiles.offsets[index + 1]) return;  // nothing was composited here
+  const Tile tile = tile_at(tiles, index, f);
+  float T[kTilePixels], behind_depth[kTilePixels], behind_alpha[kTilePixels];
+  int32_t used[kTilePixels];
+  std::vector<float> behind_color(kTilePixels * C);
+  int max_used = 0;
+  for (int y = 0; y < tile.height; ++y) {
+    for (int x = 0; x < tile.width; ++x) {
+      const int p = y * kTileSize + x;
+      const int64_t pix = int64_t(tile.y0 + y) * f.width + tile.x0 + x;
+      T[p] = final_T[pix];
+      used[p] = last[pix];
+      max_used = std::max(max_used, used[p]);
+      behind_depth[p] = 0.f;
+      behind_alpha[p] = 0.f;
+      for (int ch = 0; ch < C; ++ch) behind_color[p * C + ch] = f.background ? f.background[ch] : 0.f;
+    }
+  }
+  for (int pos = max_used - 1; pos >= 0; --pos) {
+    const int32_t i = tiles.ids[begin + pos];
+    const Footprint fp = footprint(s, i, tile);
+    const float* c = s.colors + int64_t(i) * C;
+    for (int py = fp.y0; py <= fp.y1; ++py) {
+      for (int px = fp.x0; px <= fp.x1; ++px) {
+        const int p = (py - tile.y0) * kTileSize + (px - tile.x0);
+        PixelHit h;
+        if (pos >= used[p] || !hit_pixel(fp, px, py, h)) continue;
+        T[p] /= (1.f - h.alpha);  // transmittance in front of this primitive
+        const int64_t pix = int64_t(py) * f.width + px;
+        visit(i, fp, h, pix, T[p], &behind_color[p * C], behind_depth[p], behind_alpha[p]);
+        for (int ch = 0; ch < C; ++ch) {
+          behind_color[p * C + ch] = h.alpha * c[ch] + (1.f - h.alpha) * behind_color[p * C + ch];
+        }
+        behind_depth[p] = h.alpha * s.depths[i] + (1.f - h.alpha) * behind_depth[p];
+        behind_alpha[p] = h.alpha + (1.f - h.alpha) * behind_alpha[p];
+      }
+    }
+  }
+}
+
+enum GradSlot { kMeanX, kMeanY, kConicA, kConicB, kConicC, kOpacity, kA, kT, kDepth, kColors };
+
+}  // namespace
+
+void rasterize_backward(const Splats& s, const Frame& f, const TileView& tiles,
+                        const float* final_T, const int32_t* last, const RasterGradOutputs& go,
+                        const SplatGrads& grads) {
+  const int num_tiles = tiles.tiles_x * tiles.tiles_y;
+  const int C = s.channels;
+  const int64_t per = kColors + C;
+  ThreadBuffers buffers(omp_get_max_threads(), s.n, per);
+#pragma omp parallel
+  {
+    float* g = buffers.of(omp_get_thread_num());
+#pragma omp for schedule(dynamic, 4)
+    for (int index = 0; index < num_tiles; ++index) {
+      walk_tile_backwards(s, f, tiles, index, final_T, last,
+          [&](int32_t i, const Footprint& fp, const PixelHit& h, int64_t pix, float T,
+              const float* behind_color, float behind_depth, float behind_alpha) {
+            float* gi = g + int64_t(i) * per;
+            const float w = h.alpha * T;
+            const float* c = s.colors + int64_t(i) * C;
+            float g_alpha = 0.f;
+            for (int ch = 0; ch < C; ++ch) {
+              const float g_img = go.image[pix * C + ch];
+              gi[kColors + ch] += w * g_img;
+              g_alpha += (c[ch] - behind_color[ch]) * T * g_img;
+            }
+            gi[kDepth] += w * go.depth[pix];
+            g_alpha += (s.depths[i] - behind_depth) * T * go.depth[pix];
+            g_alpha += (1.f - behind_alpha) * T * go.alpha[pix];
+            if (h.clamped) return;
+            float dD_du, dD_dt;
+            dog_value_grad(h.u, fp.t, dD_du, dD_dt);
+            gi[kOpacity] += g_alpha * h.D;
+            const float g_D = g_alpha * fp.opacity;
+            gi[kT] += g_D * dD_dt;
+            const float g_u = g_D * dD_du;
+            gi[kA] += g_u * (-h.u * 2.f * fp.inv_2a);  // du/da = -u / a
+            const float g_q = g_u * fp.inv_2a;
+            gi[kConicA] += g_q * h.dx * h.dx;
+            gi[kConicB] += g_q * 2.f * h.dx * h.dy;
+            gi[kConicC] += g_q * h.dy * h.dy;
+            gi[kMeanX] += -2.f * g_q * (fp.A * h.dx + fp.B * h.dy);
+            gi[kMeanY] += -2.f * g_q * (fp.B * h.dx + fp.C * h.dy);
+          });
+    }
+  }
+  const float* acc = buffers.reduce();
+#pragma omp parallel for schedule(static)
+  for (int64_t i = 0; i < s.n; ++i) {
+    const float* a = acc + i * per;
+    grads.means2d[2 * i] = a[kMeanX];
+    grads.means2d[2 * i + 1] = a[kMeanY];
+    grads.conics[3 * i] = a[kConicA];
+    grads.conics[3 * i + 1] = a[kConicB];
+    grads.conics[3 * i + 2] = a[kConicC];
+    grads.opacity[i] = a[kOpacity];
+    grads.a[i] = a[kA];
+    grads.t[i] = a[kT];
+    grads.depths[i] = a[kDepth];
+    for (int ch = 0; ch < C; ++ch) grads.colors[i * C + ch] = a[kColors + ch];
+  }
+}
+
+void rasterize_fisher(const Splats& s, const Frame& f, const TileView& tiles, const float* final_T,
+                      const int32_t* last, float* fisher) {
+  const int num_tiles = tiles.tiles_x * tiles.tiles_y;
+  const int C = s.channels;
+  ThreadBuffers buffers(omp_get_max_threads(), s.n, 1);
+#pragma omp parallel
+  {
+    float* g = buffers.of(omp_get_thread_num());
+#pragma omp for schedule(dynamic, 4)
+    for (int index = 0; index < num_tiles; ++index) {
+      walk_tile_backwards(s, f, tiles, index, final_T, last,
+          [&](int32_t i, const Footprint& fp, const PixelHit& h, int64_t, float T,
+              const float* behind_color, float, float) {
+            if (h.clamped) return;  // alpha saturated: the image does not move with D here
+            const float* c = s.colors + int64_t(i) * C;
+            float sum = 0.f;
+            for (int ch = 0; ch < C; ++ch) {
+              const float dI_dD = (c[ch] - behind_color[ch]) * T * fp.opacity;
+              sum += dI_dD * dI_dD;
+            }
+            g[i] += sum;
+          });
+    }
+  }
+  const float* acc = buffers.reduce();
+  for (int64_t i = 0; i < s.n; ++i) fisher[i] += acc[i];
+}
+
+}  // namespace edgedog

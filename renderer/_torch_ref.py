@@ -1,0 +1,234 @@
+"""Plain-torch reference of every rasterizer stage, and of the whole render.
+
+Differentiable by autograd in any dtype (the tests run it in float64 as ground truth and
+`gradcheck` it); slow. The C++ kernels in csrc/ implement exactly these functions, stage by
+stage, with hand-written backward passes. The maths is documented in docs/METHOD.md.
+"""
+
+from __future__ import annotations
+
+import math
+
+import torch
+
+from edgedog.renderer.config import (
+    ALPHA_MAX,
+    ALPHA_MIN,
+    EARLY_STOP_T,
+    FRUSTUM_SLACK,
+    TILE_SIZE,
+)
+
+# |x| below this: phi and its derivative by their Taylor series (error < 2e-8).
+SERIES_LIMIT = 0.1
+# t above this (s = 1 - t below 0.5): the cancellation-free form of the DoG profile.
+NEAR_LOG_T = 0.5
+
+
+def phi(x: torch.Tensor) -> torch.Tensor:
+    """(exp(x) - 1) / x, with phi(0) = 1; elementwise."""
+    small = x.abs() < SERIES_LIMIT
+    xs = torch.where(small, x, torch.zeros_like(x))
+    series = 1 + xs / 2 + xs**2 / 6 + xs**3 / 24 + xs**4 / 120
+    xl = torch.where(small, torch.ones_like(x), x)
+    return torch.where(small, series, torch.expm1(xl) / xl)
+
+
+def dog_profile(u: torch.Tensor, t: torch.Tensor) -> torch.Tensor:
+    """The peak-normalised DoG profile D(u; t) = [exp(-u) - t exp(-t u)] / (1 - t).
+
+    Args:
+        u: q / (2 a) >= 0, where q is the Mahalanobis distance under the 2D covariance.
+        t: ratio of the inner to the outer covariance scale, in [0, 1).
+    D(0) = 1; t = 0 is the Gaussian exp(-u); t -> 1 tends to exp(-u) (1 - u). Near t = 1 it
+    is evaluated as exp(-t u) - u exp(-u) phi((1 - t) u), which has no 0/0.
+    """
+    s = 1 - t
+    s_far = torch.where(s >= NEAR_LOG_T, s, torch.ones_like(s))
+    direct = (torch.exp(-u) - t * torch.exp(-t * u)) / s_far
+    s_near = torch.where(s >= NEAR_LOG_T, torch.zeros_like(s), s)
+    stable = torch.exp(-(1 - s_near) * u) - u * torch.exp(-u) * phi(s_near * u)
+    return torch.where(s >= NEAR_LOG_T, direct, stable)
+
+
+def dog_zero_crossing(t: torch.Tensor) -> torch.Tensor:
+    """u0 = -ln(t) / (1 - t), where D changes sign (inf at t = 0, 1 at t = 1)."""
+    s = 1 - t
+    tiny = s < 1e-4
+    s_safe = torch.where(tiny, torch.ones_like(s), s)
+    t_safe = torch.where(t > 0, t, torch.ones_like(t))
+    u0 = torch.where(t > 0, -torch.log(t_safe) / s_safe, torch.full_like(t, math.inf))
+    return torch.where(tiny, 1 + s / 2, u0)
+
+
+def support_u(opacity: torch.Tensor, t: torch.Tensor) -> torch.Tensor:
+    """Largest u at which alpha = opacity * D(u) can still reach ALPHA_MIN (0 if never).
+
+    D decreases on [0, u0] and D <= exp(-u) / (1 - t), so alpha >= ALPHA_MIN needs
+    u <= min(u0, ln(opacity / (ALPHA_MIN (1 - t)))).
+    """
+    s = (1 - t).clamp_min(1e-12)
+    by_alpha = torch.log((opacity / (ALPHA_MIN * s)).clamp_min(1.0))
+    visible = opacity * 1.0 >= ALPHA_MIN
+    return torch.where(visible, torch.minimum(dog_zero_crossing(t), by_alpha), torch.zeros_like(t))
+
+
+def quat_to_rotmat(quats: torch.Tensor) -> torch.Tensor:
+    """(N, 4) quaternions (w, x, y, z), any norm -> (N, 3, 3) rotations; zero -> identity."""
+    norm = torch.sqrt((quats * quats).sum(-1, keepdim=True).clamp_min(1e-24))
+    w, x, y, z = (quats / norm).unbind(-1)
+    return torch.stack([
+        1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),
+        2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
+        2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y),
+    ], dim=-1).reshape(-1, 3, 3)
+
+
+def project(means, scales, quats, support_q, K, w2c, width: int, height: int, near: float, eps2d: float):
+    """EWA projection of 3D Gaussians.
+
+    Args:
+        means: (N, 3) world positions; scales: (N, 3) positive axis lengths;
+        quats: (N, 4) rotations (w, x, y, z); support_q: (N,) Mahalanobis radius^2 of each
+        footprint's support; K: (3, 3); w2c: (4, 4) OpenCV.
+    Returns:
+        means2d (N, 2) pixels, conics (N, 3) = inverse 2D covariance (a, b, c),
+        depths (N,) camera z (0 when culled), extents (N, 2) half-widths in pixels of the
+        support ellipse (0 when culled), valid (N,) bool (in front of the near plane).
+    """
+    R_cam, t_cam = w2c[:3, :3], w2c[:3, 3]
+    p = means @ R_cam.T + t_cam
+    x, y, z = p.unbind(-1)
+    valid = z > near
+    z = torch.where(valid, z, torch.ones_like(z))  # keeps culled entries finite
+    fx, fy, cx, cy = K[0, 0], K[1, 1], K[0, 2], K[1, 2]
+    # Clamp the direction to 1.3x the field of view: beyond it the affine (EWA) approximation
+    # of the projection explodes (3DGS does the same).
+    lim_x = FRUSTUM_SLACK * 0.5 * width / fx
+    lim_y = FRUSTUM_SLACK * 0.5 * height / fy
+    tx = z * torch.clamp(x / z, -lim_x, lim_x)
+    ty = z * torch.clamp(y / z, -lim_y, lim_y)
+    zeros = torch.zeros_like(z)
+    J = torch.stack([fx / z, zeros, -fx * tx / z**2, zeros, fy / z, -fy * ty / z**2], -1).reshape(-1, 2, 3)
+    M = quat_to_rotmat(quats) * scales[:, None, :]  # R S
+    T = J @ R_cam
+    TM = T @ M
+    cov = TM @ TM.transpose(1, 2)
+    a = cov[:, 0, 0] + eps2d
+    b = cov[:, 0, 1]
+    c = cov[:, 1, 1] + eps2d
+    det = a * c - b * b
+    conics = torch.stack([c / det, -b / det, a / det], -1)
+    means2d = torch.stack([fx * x / z + cx, fy * y / z + cy], -1)
+    # The ellipse d^T cov^-1 d <= s spans sqrt(s cov_xx) in x and sqrt(s cov_yy) in y.
+    support_q = torch.where(valid, support_q.clamp_min(0), torch.zeros_like(support_q))
+    extents = torch.stack([torch.sqrt(support_q * a), torch.sqrt(support_q * c)], -1).detach()
+    return means2d, conics, torch.where(valid, p[:, 2], torch.zeros_like(z)), extents, valid
+
+
+def tile_lists(means2d, extents, depths, valid, width: int, height: int):
+    """Primitives whose support box reaches each 16x16 tile, front to back (no gradients).
+
+    A primitive covers the pixel centres x in [m - e, m + e] (likewise y).
+    Returns:
+        list over tiles (row-major) of (n_i,) int64 primitive indices sorted by depth.
+    """
+    lo = torch.clamp(torch.ceil(means2d - extents), min=0)
+    hi = torch.minimum(torch.floor(means2d + extents), means2d.new_tensor([width - 1, height - 1]))
+    usable = valid & (extents > 0).all(1) & (lo <= hi).all(1)
+    lo_tile = torch.where(usable[:, None], lo, torch.zeros_like(lo)).long() // TILE_SIZE
+    hi_tile = torch.where(usable[:, None], hi, -torch.ones_like(hi)).long() // TILE_SIZE
+    tiles_x, tiles_y = -(-width // TILE_SIZE), -(-height // TILE_SIZE)
+    order = torch.argsort(depths, stable=True)
+    lists = []
+    for ty in range(tiles_y):
+        for tx in range(tiles_x):
+            hit = usable & (lo_tile[:, 0] <= tx) & (hi_tile[:, 0] >= tx) & (lo_tile[:, 1] <= ty) \
+                & (hi_tile[:, 1] >= ty)
+            lists.append(order[hit[order]])
+    return lists
+
+
+def composite(alpha: torch.Tensor, colors: torch.Tensor, depths: torch.Tensor, background=None):
+    """Front-to-back compositing of P pixels over N depth-sorted primitives.
+
+    Args:
+        alpha: (P, N) per-pixel opacities, 0 where a primitive is skipped.
+        colors: (N, C); depths: (N,); background: (C,) or None (black).
+    Returns:
+        image (P, C), alpha (P,), depth (P,) = sum z_i alpha_i T_i.
+    A primitive counts while the transmittance after it stays >= EARLY_STOP_T, as in 3DGS.
+    """
+    after = torch.cumprod(1 - alpha, dim=1)
+    keep = (after >= EARLY_STOP_T).to(alpha.dtype)  # a prefix, since `after` decreases
+    before = torch.cat([torch.ones_like(alpha[:, :1]), after[:, :-1]], dim=1)
+    weight = alpha * before * keep
+    image = weight @ colors
+    final_T = 1 - weight.sum(1)
+    if background is not None:
+        image = image + final_T[:, None] * background
+    return image, 1 - final_T, weight @ depths
+
+
+def footprint_response(pixels, means2d, conics, a, t, support):
+    """(P, N) DoG response D of N primitives at P pixel centres (P, 2), and where u <= support."""
+    d = pixels[:, None, :] - means2d[None]
+    A, B, C = conics.unbind(-1)
+    q = A * d[..., 0] ** 2 + 2 * B * d[..., 0] * d[..., 1] + C * d[..., 1] ** 2
+    u = q / (2 * a)
+    inside = u <= support
+    return dog_profile(torch.where(inside, u, torch.zeros_like(u)), t.expand_as(u)), inside
+
+
+def alpha_from_response(D, inside, opacity):
+    """(P, N) alpha = min(ALPHA_MAX, opacity D), zero where skipped (outside, or < ALPHA_MIN)."""
+    alpha = torch.clamp(opacity * D, max=ALPHA_MAX)
+    return torch.where(inside & (alpha >= ALPHA_MIN), alpha, torch.zeros_like(alpha))
+
+
+def _tiles(lists, width: int, height: int, dtype):
+    """(tile's primitive ids, pixel rows, pixel columns, pixel centres (P, 2)) of non-empty tiles."""
+    tiles_x = -(-width // TILE_SIZE)
+    for index, ids in enumerate(lists):
+        if len(ids) == 0:
+            continue
+        y0, x0 = (index // tiles_x) * TILE_SIZE, (index % tiles_x) * TILE_SIZE
+        ys, xs = torch.meshgrid(torch.arange(y0, min(y0 + TILE_SIZE, height)),
+                                torch.arange(x0, min(x0 + TILE_SIZE, width)), indexing="ij")
+        ys, xs = ys.reshape(-1), xs.reshape(-1)
+        yield ids, ys, xs, torch.stack([xs, ys], -1).to(dtype)
+
+
+def rasterize(means2d, conics, depths, opacity, a, t, colors, support, extents, valid,
+              width: int, height: int, background=None):
+    """Tile by tile, the splats' image (H, W, C), alpha (H, W) and depth (H, W)."""
+    lists = tile_lists(means2d.detach(), extents, depths.detach(), valid, width, height)
+    image = means2d.new_zeros(height, width, colors.shape[1])
+    alpha_out = means2d.new_zeros(height, width)
+    depth_out = means2d.new_zeros(height, width)
+    if background is not None:
+        image = image + background
+    for ids, ys, xs, pixels in _tiles(lists, width, height, means2d.dtype):
+        D, inside = footprint_response(pixels, means2d[ids], conics[ids], a[ids], t[ids], support[ids])
+        img, alp, dep = composite(alpha_from_response(D, inside, opacity[ids]), colors[ids], depths[ids],
+                                  background)
+        image = image.index_put((ys, xs), img)
+        alpha_out = alpha_out.index_put((ys, xs), alp)
+        depth_out = depth_out.index_put((ys, xs), dep)
+    return image, alpha_out, depth_out
+
+
+def fisher_per_view(means2d, conics, depths, opacity, a, t, colors, support, extents, valid,
+                    width: int, height: int, background=None):
+    """(N,) sum over pixels and channels of (dI_c / dD_i)^2, by autograd with D as leaves."""
+    lists = tile_lists(means2d, extents, depths, valid, width, height)
+    fisher = means2d.new_zeros(means2d.shape[0])
+    for ids, _, _, pixels in _tiles(lists, width, height, means2d.dtype):
+        D, inside = footprint_response(pixels, means2d[ids], conics[ids], a[ids], t[ids], support[ids])
+        D = D.detach().requires_grad_(True)
+        image, _, _ = composite(alpha_from_response(D, inside, opacity[ids]), colors[ids], depths[ids],
+                                background)
+        for channel in range(colors.shape[1]):
+            (grad,) = torch.autograd.grad(image[:, channel].sum(), D, retain_graph=True)
+            fisher.index_add_(0, ids, (grad**2).sum(0))
+    return fisher

@@ -1,0 +1,56 @@
+"""Rasterizer settings: the typed config users set, and the constants the kernels share.
+
+The constants are mirrored in csrc/constants.h; tests check that both sides agree.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+TILE_SIZE = 16
+"""Tiles are TILE_SIZE x TILE_SIZE pixels."""
+ALPHA_MIN = 1.0 / 255.0
+"""A primitive whose alpha at a pixel is below this is skipped there (as in 3DGS)."""
+ALPHA_MAX = 0.99
+"""Per-primitive alpha is clamped to this, so the transmittance can be recovered backwards."""
+EARLY_STOP_T = 1e-4
+"""A pixel stops compositing once its transmittance would fall below this."""
+FRUSTUM_SLACK = 1.3
+"""The EWA Jacobian is evaluated at directions clamped to 1.3x the half field of view."""
+
+Kernel = Literal["gaussian", "dog"]
+KActivation = Literal["sigmoid", "exp"]
+Backend = Literal["cpp", "torch"]
+
+
+@dataclass(frozen=True)
+class RasterConfig:
+    """How primitives are turned into pixels.
+
+    Attributes:
+        kernel: "dog" for EdgeDoG's centre-surround footprint, "gaussian" for the plain 3DGS
+            footprint (the EdgeGaussians baseline: the DoG parameters are then ignored).
+        k_activation: maps the raw DoG parameters k to (a, t): "sigmoid" (the paper's choice
+            for ABC) or "exp" (other data). See docs/METHOD.md.
+        eps2d: screen-space dilation added to the 2D covariance's diagonal, in pixels^2
+            (3DGS's anti-aliasing low-pass, without opacity compensation).
+        background: colour composited behind the primitives, one value per channel; None is 0.
+        backend: "cpp" (the compiled kernels) or "torch" (the slow reference).
+    """
+
+    kernel: Kernel = "dog"
+    k_activation: KActivation = "sigmoid"
+    eps2d: float = 0.3
+    background: tuple[float, ...] | None = None
+    backend: Backend = "cpp"
+
+    def __post_init__(self):
+        if self.kernel not in ("gaussian", "dog"):
+            raise ValueError(f"kernel must be 'gaussian' or 'dog', got {self.kernel!r}")
+        if self.k_activation not in ("sigmoid", "exp"):
+            raise ValueError(f"k_activation must be 'sigmoid' or 'exp', got {self.k_activation!r}")
+        if self.backend not in ("cpp", "torch"):
+            raise ValueError(f"backend must be 'cpp' or 'torch', got {self.backend!r}")
+        if not self.eps2d >= 0:
+            raise ValueError(f"eps2d must be >= 0, got {self.eps2d}")
