@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <cmath>
 #include <numeric>
-#include <utility>
 
 #include "constants.h"
 
@@ -34,32 +33,33 @@ TileLists build_tile_lists(int64_t n, const float* means2d, const float* extents
   lists.tiles_y = (height + kTileSize - 1) / kTileSize;
   const int tiles = lists.tiles_x * lists.tiles_y;
 
-  // Sort (depth, index) pairs: contiguous keys sort fast, and the index breaks ties.
-  std::vector<std::pair<float, int32_t>> keyed;
-  keyed.reserve(n);
+  std::vector<TileRect> rects(n);
+#pragma omp parallel for schedule(static)
   for (int64_t i = 0; i < n; ++i) {
-    if (valid[i] && extents[2 * i] > 0 && extents[2 * i + 1] > 0) keyed.emplace_back(depths[i], int32_t(i));
+    const bool usable = valid[i] && extents[2 * i] > 0 && extents[2 * i + 1] > 0;
+    rects[i] = usable ? tile_rect(means2d + 2 * i, extents + 2 * i, width, height) : TileRect{1, 0, 1, 0};
   }
-  std::sort(keyed.begin(), keyed.end());
-  std::vector<int32_t> order(keyed.size());
-  for (size_t k = 0; k < keyed.size(); ++k) order[k] = keyed[k].second;
-
-  std::vector<TileRect> rects(order.size());
   lists.offsets.assign(tiles + 1, 0);
-  for (size_t k = 0; k < order.size(); ++k) {
-    const int32_t i = order[k];
-    rects[k] = tile_rect(means2d + 2 * i, extents + 2 * i, width, height);
-    for (int ty = rects[k].y0; ty <= rects[k].y1; ++ty) {
-      for (int tx = rects[k].x0; tx <= rects[k].x1; ++tx) ++lists.offsets[ty * lists.tiles_x + tx + 1];
+  for (int64_t i = 0; i < n; ++i) {
+    for (int ty = rects[i].y0; ty <= rects[i].y1; ++ty) {
+      for (int tx = rects[i].x0; tx <= rects[i].x1; ++tx) ++lists.offsets[ty * lists.tiles_x + tx + 1];
     }
   }
   std::partial_sum(lists.offsets.begin(), lists.offsets.end(), lists.offsets.begin());
   lists.ids.resize(lists.offsets.back());
   std::vector<int32_t> cursor(lists.offsets.begin(), lists.offsets.end() - 1);
-  for (size_t k = 0; k < order.size(); ++k) {  // in depth order: each run comes out sorted
-    for (int ty = rects[k].y0; ty <= rects[k].y1; ++ty) {
-      for (int tx = rects[k].x0; tx <= rects[k].x1; ++tx) lists.ids[cursor[ty * lists.tiles_x + tx]++] = order[k];
+  for (int64_t i = 0; i < n; ++i) {
+    for (int ty = rects[i].y0; ty <= rects[i].y1; ++ty) {
+      for (int tx = rects[i].x0; tx <= rects[i].x1; ++tx) lists.ids[cursor[ty * lists.tiles_x + tx]++] = int32_t(i);
     }
+  }
+  // Each tile's run, front to back; the index breaks depth ties. Runs are short and independent.
+  auto front_to_back = [depths](int32_t a, int32_t b) {
+    return depths[a] < depths[b] || (depths[a] == depths[b] && a < b);
+  };
+#pragma omp parallel for schedule(dynamic, 16)
+  for (int k = 0; k < tiles; ++k) {
+    std::sort(lists.ids.begin() + lists.offsets[k], lists.ids.begin() + lists.offsets[k + 1], front_to_back);
   }
   return lists;
 }

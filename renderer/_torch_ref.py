@@ -10,7 +10,6 @@ from __future__ import annotations
 import math
 
 import torch
-
 from edgedog.renderer.config import (
     ALPHA_MAX,
     ALPHA_MIN,
@@ -203,9 +202,12 @@ def rasterize(means2d, conics, depths, opacity, a, t, colors, support, extents, 
               width: int, height: int, background=None):
     """Tile by tile, the splats' image (H, W, C), alpha (H, W) and depth (H, W)."""
     lists = tile_lists(means2d.detach(), extents, depths.detach(), valid, width, height)
-    image = means2d.new_zeros(height, width, colors.shape[1])
-    alpha_out = means2d.new_zeros(height, width)
-    depth_out = means2d.new_zeros(height, width)
+    # Zero, but connected to every input: with nothing visible, backward still gives zeros.
+    # (Sums of empty slices: exactly 0 even where an input holds NaN.)
+    zero = sum(x[:0].sum() for x in (means2d, conics, depths, opacity, a, t, colors))
+    image = means2d.new_zeros(height, width, colors.shape[1]) + zero
+    alpha_out = means2d.new_zeros(height, width) + zero
+    depth_out = means2d.new_zeros(height, width) + zero
     if background is not None:
         image = image + background
     for ids, ys, xs, pixels in _tiles(lists, width, height, means2d.dtype):

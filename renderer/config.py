@@ -14,8 +14,10 @@ ALPHA_MIN = 1.0 / 255.0
 """A primitive whose alpha at a pixel is below this is skipped there (as in 3DGS)."""
 ALPHA_MAX = 0.99
 """Per-primitive alpha is clamped to this, so the transmittance can be recovered backwards."""
-EARLY_STOP_T = 1e-4
-"""A pixel stops compositing once its transmittance would fall below this."""
+EARLY_STOP_T = 0.99e-4
+"""A pixel stops compositing once its transmittance would fall below this. 3DGS's 1e-4, moved
+just below (1 - ALPHA_MAX)^2 = 1e-4: two saturated layers then composite in float32 and float64
+alike instead of falling on either side of a tie."""
 FRUSTUM_SLACK = 1.3
 """The EWA Jacobian is evaluated at directions clamped to 1.3x the half field of view."""
 

@@ -7,7 +7,6 @@ inputs that need no gradient. The same stages exist in plain torch in `_torch_re
 from __future__ import annotations
 
 import torch
-
 from edgedog.renderer.extension import load_extension
 from edgedog.renderer.primitives import RasterCamera
 

@@ -5,7 +5,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import torch
-
 from edgedog.renderer import _torch_ref as ref
 from edgedog.renderer.config import RasterConfig
 

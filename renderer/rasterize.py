@@ -10,7 +10,6 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import torch
-
 from edgedog.renderer import _torch_ref as ref
 from edgedog.renderer import ops
 from edgedog.renderer.config import RasterConfig
@@ -37,10 +36,10 @@ class RenderOutput:
     visible: torch.Tensor
 
 
-def _background(config: RasterConfig, channels: int) -> torch.Tensor | None:
+def _background(config: RasterConfig, channels: int, dtype: torch.dtype) -> torch.Tensor | None:
     if config.background is None:
         return None
-    bg = torch.tensor(config.background, dtype=torch.float32)
+    bg = torch.tensor(config.background, dtype=dtype)
     if bg.numel() != channels:
         raise ValueError(f"background has {bg.numel()} values for {channels} channels")
     return bg
@@ -50,36 +49,79 @@ def _visible(means2d, extents, valid, camera: RasterCamera) -> torch.Tensor:
     """Primitives whose support box contains at least one pixel centre of the image."""
     lo = torch.ceil(means2d.detach() - extents)
     hi = torch.floor(means2d.detach() + extents)
-    inside = (hi[:, 0] >= 0) & (lo[:, 0] <= camera.width - 1) & (hi[:, 1] >= 0) & (lo[:, 1] <= camera.height - 1)
+    inside = (
+        (hi[:, 0] >= 0) & (lo[:, 0] <= camera.width - 1) & (hi[:, 1] >= 0) & (lo[:, 1] <= camera.height - 1)
+    )
     return valid & (extents > 0).all(1) & inside & (torch.maximum(lo, torch.zeros_like(lo)) <= hi).all(1)
 
 
-def _render_one(prims: Primitives, act: Activated, camera: RasterCamera, config: RasterConfig) -> RenderOutput:
-    background = _background(config, prims.colors.shape[1])
+def _render_one(
+    prims: Primitives, act: Activated, camera: RasterCamera, config: RasterConfig
+) -> RenderOutput:
+    background = _background(config, prims.colors.shape[1], prims.colors.dtype)
     w, h = camera.width, camera.height
     if config.backend == "cpp":
         means2d, conics, depths, extents, valid = ops.project(
-            prims.means, act.scales, prims.quats, act.support_q, camera, config.eps2d)
+            prims.means, act.scales, prims.quats, act.support_q, camera, config.eps2d
+        )
         if means2d.requires_grad:
             means2d.retain_grad()
         offsets, ids = ops.tile_lists(means2d, extents, depths, valid, w, h)
-        image, alpha, depth = ops.rasterize(means2d, conics, act.opacity, act.a, act.t, prims.colors, depths,
-                                            act.support, extents, offsets, ids, w, h, background)
+        image, alpha, depth = ops.rasterize(
+            means2d,
+            conics,
+            act.opacity,
+            act.a,
+            act.t,
+            prims.colors,
+            depths,
+            act.support,
+            extents,
+            offsets,
+            ids,
+            w,
+            h,
+            background,
+        )
     else:
         dtype = prims.means.dtype
         means2d, conics, depths, extents, valid = ref.project(
-            prims.means, act.scales, prims.quats, act.support_q, camera.K.to(dtype), camera.w2c.to(dtype),
-            w, h, camera.near, config.eps2d)
+            prims.means,
+            act.scales,
+            prims.quats,
+            act.support_q,
+            camera.K.to(dtype),
+            camera.w2c.to(dtype),
+            w,
+            h,
+            camera.near,
+            config.eps2d,
+        )
         if means2d.requires_grad:
             means2d.retain_grad()
-        image, alpha, depth = ref.rasterize(means2d, conics, depths, act.opacity, act.a, act.t, prims.colors,
-                                            act.support, extents, valid, w, h,
-                                            None if background is None else background.to(dtype))
+        image, alpha, depth = ref.rasterize(
+            means2d,
+            conics,
+            depths,
+            act.opacity,
+            act.a,
+            act.t,
+            prims.colors,
+            act.support,
+            extents,
+            valid,
+            w,
+            h,
+            background,
+        )
     return RenderOutput(image, alpha, depth, means2d, _visible(means2d, extents, valid, camera))
 
 
-def rasterize(primitives: Primitives, cameras: RasterCamera | Sequence[RasterCamera],
-              config: RasterConfig = RasterConfig()) -> RenderOutput | list[RenderOutput]:
+def rasterize(
+    primitives: Primitives,
+    cameras: RasterCamera | Sequence[RasterCamera],
+    config: RasterConfig = RasterConfig(),
+) -> RenderOutput | list[RenderOutput]:
     """Render the primitives into one camera (-> RenderOutput) or several (-> a list)."""
     act = activate(primitives, config)
     if isinstance(cameras, RasterCamera):
@@ -87,8 +129,9 @@ def rasterize(primitives: Primitives, cameras: RasterCamera | Sequence[RasterCam
     return [_render_one(primitives, act, camera, config) for camera in cameras]
 
 
-def fisher_information(primitives: Primitives, cameras: Sequence[RasterCamera],
-                       config: RasterConfig = RasterConfig()) -> torch.Tensor:
+def fisher_information(
+    primitives: Primitives, cameras: Sequence[RasterCamera], config: RasterConfig = RasterConfig()
+) -> torch.Tensor:
     """(N,) U_i = sum over views, pixels and channels of (dI/dD_i)^2, without autograd.
 
     D_i is primitive i's footprint response at a pixel (the DoG profile, before opacity): the
@@ -102,11 +145,25 @@ def fisher_information(primitives: Primitives, cameras: Sequence[RasterCamera],
             w, h = camera.width, camera.height
             if config.backend == "cpp":
                 means2d, conics, depths, extents, valid = ops.project(
-                    primitives.means, act.scales, primitives.quats, act.support_q, camera, config.eps2d)
+                    primitives.means, act.scales, primitives.quats, act.support_q, camera, config.eps2d
+                )
                 offsets, ids = ops.tile_lists(means2d, extents, depths, valid, w, h)
-                total += ops.fisher(means2d, conics, act.opacity, act.a, act.t, primitives.colors, depths,
-                                    act.support, extents, offsets, ids, w, h,
-                                    _background(config, primitives.colors.shape[1]))
+                total += ops.fisher(
+                    means2d,
+                    conics,
+                    act.opacity,
+                    act.a,
+                    act.t,
+                    primitives.colors,
+                    depths,
+                    act.support,
+                    extents,
+                    offsets,
+                    ids,
+                    w,
+                    h,
+                    _background(config, primitives.colors.shape[1], torch.float32),
+                )
             else:
                 total += fisher_reference(primitives, camera, config).to(torch.float32)
     return total
@@ -122,10 +179,29 @@ def fisher_reference(primitives: Primitives, camera: RasterCamera, config: Raste
         act = activate(primitives, config)
         dtype = primitives.means.dtype
         means2d, conics, depths, extents, valid = ref.project(
-            primitives.means, act.scales, primitives.quats, act.support_q, camera.K.to(dtype),
-            camera.w2c.to(dtype), camera.width, camera.height, camera.near, config.eps2d)
-        background = _background(config, primitives.colors.shape[1])
-        return ref.fisher_per_view(means2d.detach(), conics.detach(), depths.detach(), act.opacity.detach(),
-                                   act.a.detach(), act.t.detach(), primitives.colors.detach(),
-                                   act.support, extents, valid, camera.width, camera.height,
-                                   None if background is None else background.to(dtype))
+            primitives.means,
+            act.scales,
+            primitives.quats,
+            act.support_q,
+            camera.K.to(dtype),
+            camera.w2c.to(dtype),
+            camera.width,
+            camera.height,
+            camera.near,
+            config.eps2d,
+        )
+        return ref.fisher_per_view(
+            means2d.detach(),
+            conics.detach(),
+            depths.detach(),
+            act.opacity.detach(),
+            act.a.detach(),
+            act.t.detach(),
+            primitives.colors.detach(),
+            act.support,
+            extents,
+            valid,
+            camera.width,
+            camera.height,
+            _background(config, primitives.colors.shape[1], dtype),
+        )

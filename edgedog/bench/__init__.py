@@ -1,0 +1,1 @@
+"""Benchmarks behind `edgedog bench ...`; results are recorded in docs/BENCHMARKS.md."""

@@ -1,0 +1,206 @@
+"""`edgedog bench raster`: speed of the rasterizer's C++ path against the torch reference.
+
+The scene is ABC-like: thin primitives laid along the straight edges and circles of a CAD part
+in [0, 1]^3 (a box with a circular hole and a boss), viewed from the ABC-NEF camera sphere.
+"""
+
+from __future__ import annotations
+
+import platform
+import resource
+import time
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+from edgedog.builtin_scene import CORNERS, EDGES, orbit_cameras
+from edgedog.renderer.config import RasterConfig
+from edgedog.renderer.extension import load_extension
+from edgedog.renderer.primitives import Primitives, RasterCamera
+from edgedog.renderer.rasterize import RenderOutput, fisher_information, rasterize
+
+MAJOR_SCALE = 0.004  # 4 mm along the curve
+MINOR_SCALE = 0.0008  # 0.8 mm across: thin edge primitives
+
+
+@dataclass(frozen=True)
+class RasterBenchConfig:
+    """Attributes:
+    primitives: number of primitives.
+    size: image width and height in pixels.
+    views: C++ views timed (each: forward, backward, Fisher).
+    reference_views: views timed with the torch reference (it is slow).
+    kernel: "dog" or "gaussian".
+    seed: random seed of the scene.
+    """
+
+    primitives: int = 20000
+    size: int = 800
+    views: int = 50
+    reference_views: int = 1
+    kernel: str = "dog"
+    seed: int = 0
+
+
+def _curves() -> list[np.ndarray]:
+    """Polylines (M, 3) of the part's feature curves: box edges, two circles and a boss."""
+    curves = [CORNERS[[a, b]] for a, b in EDGES]
+    angles = np.linspace(0, 2 * np.pi, 65)
+    top, bottom = CORNERS[:, 2].max(), CORNERS[:, 2].min()
+    for z in (top, bottom):  # a through hole of radius 0.1
+        curves.append(
+            np.stack([0.35 + 0.1 * np.cos(angles), 0.5 + 0.1 * np.sin(angles), np.full_like(angles, z)], 1)
+        )
+    for z in (top, top + 0.1):  # a cylindrical boss of radius 0.06
+        curves.append(
+            np.stack([0.65 + 0.06 * np.cos(angles), 0.5 + 0.06 * np.sin(angles), np.full_like(angles, z)], 1)
+        )
+    return curves
+
+
+def abc_like_primitives(n: int, seed: int = 0) -> Primitives:
+    """`n` thin primitives along the part's curves, major axis along the tangent."""
+    rng = np.random.default_rng(seed)
+    segments = np.concatenate([np.stack([c[:-1], c[1:]], 1) for c in _curves()])  # (S, 2, 3)
+    lengths = np.linalg.norm(segments[:, 1] - segments[:, 0], axis=1)
+    pick = rng.choice(len(segments), size=n, p=lengths / lengths.sum())
+    s = rng.random((n, 1))
+    means = segments[pick, 0] * (1 - s) + segments[pick, 1] * s
+    tangent = segments[pick, 1] - segments[pick, 0]
+    tangent /= np.linalg.norm(tangent, axis=1, keepdims=True)
+    # The rotation taking +x to the tangent: quaternion (1 + x.d, x cross d), normalised.
+    x = np.array([1.0, 0.0, 0.0])
+    quats = np.concatenate([1 + tangent @ x[:, None], np.cross(x, tangent)], axis=1)
+    flipped = quats[:, 0] < 1e-6  # tangent along -x: rotate half a turn about z
+    quats[flipped] = [0.0, 0.0, 0.0, 1.0]
+    log_scales = np.log(np.array([MAJOR_SCALE, MINOR_SCALE, MINOR_SCALE]))[None] + 0.1 * rng.standard_normal(
+        (n, 3)
+    )
+    f32 = dict(dtype=torch.float32)
+    return Primitives(
+        means=torch.tensor(means, **f32).requires_grad_(),
+        log_scales=torch.tensor(log_scales, **f32).requires_grad_(),
+        quats=torch.tensor(quats, **f32).requires_grad_(),
+        opacity_logits=torch.full((n,), 2.0, **f32).requires_grad_(),
+        k_raw=torch.zeros(n, 2, **f32).requires_grad_(),
+        colors=torch.ones(n, 1, **f32),
+    )
+
+
+def _with_dtype(prims: Primitives, dtype) -> Primitives:
+    return Primitives(
+        *(
+            getattr(prims, f).detach().to(dtype).requires_grad_(getattr(prims, f).requires_grad)
+            for f in ("means", "log_scales", "quats", "opacity_logits", "k_raw", "colors")
+        )
+    )
+
+
+def _evaluations(out: RenderOutput, prims: Primitives, camera: RasterCamera, config: RasterConfig) -> int:
+    """Primitive-pixel evaluations of a forward pass: pixels inside each support box."""
+    from edgedog.renderer import ops
+    from edgedog.renderer.primitives import activate
+
+    with torch.no_grad():
+        act = activate(prims, config)
+        means2d, _, _, extents, valid = ops.project(
+            prims.means, act.scales, prims.quats, act.support_q, camera, config.eps2d
+        )
+        lo = torch.clamp(torch.ceil(means2d - extents), min=0)
+        hi = torch.minimum(
+            torch.floor(means2d + extents), torch.tensor([camera.width - 1.0, camera.height - 1.0])
+        )
+        count = torch.clamp(hi - lo + 1, min=0).prod(1)
+    return int(count[out.visible].sum())
+
+
+def _time_view(
+    prims: Primitives, camera: RasterCamera, config: RasterConfig, generator
+) -> tuple[float, float, RenderOutput]:
+    for tensor in (prims.means, prims.log_scales, prims.quats, prims.opacity_logits, prims.k_raw):
+        tensor.grad = None
+    start = time.perf_counter()
+    out = rasterize(prims, camera, config)
+    forward = time.perf_counter() - start
+    cotangent = torch.randn(out.image.shape, generator=generator, dtype=out.image.dtype)
+    start = time.perf_counter()
+    out.image.backward(cotangent)
+    return forward, time.perf_counter() - start, out
+
+
+def run(cfg: RasterBenchConfig) -> dict:
+    """Time the C++ path on `views` views and the reference on `reference_views`; JSON-ready."""
+    prims = abc_like_primitives(cfg.primitives, cfg.seed)
+    cameras = [RasterCamera.from_camera(c) for c in orbit_cameras(cfg.views, cfg.size)]
+    config = RasterConfig(kernel=cfg.kernel)
+    generator = torch.Generator().manual_seed(cfg.seed)
+    _time_view(prims, cameras[0], config, generator)  # warm-up: first-touch allocations
+    forward, backward, evaluations, visible = [], [], 0, []
+    for camera in cameras:
+        f, b, out = _time_view(prims, camera, config, generator)
+        forward.append(f)
+        backward.append(b)
+        evaluations += _evaluations(out, prims, camera, config)
+        visible.append(int(out.visible.sum()))
+    start = time.perf_counter()
+    fisher_information(prims, cameras, config)
+    fisher = (time.perf_counter() - start) / len(cameras)
+
+    ref_config = RasterConfig(kernel=cfg.kernel, backend="torch")
+    ref_prims = _with_dtype(prims, torch.float32)
+    ref_forward, ref_backward = [], []
+    for camera in cameras[: cfg.reference_views]:
+        f, b, _ = _time_view(ref_prims, camera, ref_config, generator)
+        ref_forward.append(f)
+        ref_backward.append(b)
+    start = time.perf_counter()
+    fisher_information(ref_prims, cameras[:1], ref_config)
+    ref_fisher = time.perf_counter() - start
+
+    ms = lambda seconds: round(1000 * float(np.mean(seconds)), 3)  # noqa: E731
+    cpp = {
+        "forward_ms": ms(forward),
+        "backward_ms": ms(backward),
+        "forward_backward_ms": ms(np.add(forward, backward)),
+        "fisher_ms": ms(fisher),
+        "forward_backward_ms_p90": round(1000 * float(np.percentile(np.add(forward, backward), 90)), 3),
+    }
+    reference = {
+        "forward_ms": ms(ref_forward),
+        "backward_ms": ms(ref_backward),
+        "forward_backward_ms": ms(np.add(ref_forward, ref_backward)),
+        "fisher_ms": ms(ref_fisher),
+    }
+    return {
+        "benchmark": "raster",
+        "config": cfg.__dict__,
+        "machine": {
+            "cpu": platform.processor() or platform.machine(),
+            "threads": torch.get_num_threads(),
+            "torch": torch.__version__,
+            "extension": load_extension().build_info(),
+        },
+        "visible_primitives_per_view": round(float(np.mean(visible)), 1),
+        "cpp": cpp,
+        "torch_reference": reference,
+        "speedup": {
+            key: round(reference[key] / cpp[key], 1)
+            for key in ("forward_ms", "backward_ms", "forward_backward_ms", "fisher_ms")
+        },
+        "primitive_pixel_evaluations_per_s": round(evaluations / max(sum(forward), 1e-9)),
+        "peak_rss_mib": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1),
+    }
+
+
+def summary(result: dict) -> str:
+    cpp, ref, speed = result["cpp"], result["torch_reference"], result["speedup"]
+    return (
+        f"C++: forward {cpp['forward_ms']} ms, backward {cpp['backward_ms']} ms, "
+        f"Fisher {cpp['fisher_ms']} ms per view; torch reference: forward {ref['forward_ms']} ms, "
+        f"backward {ref['backward_ms']} ms "
+        f"(speed-up x{speed['forward_backward_ms']} forward+backward, x{speed['fisher_ms']} Fisher)"
+    )
+
+
+__all__ = ["RasterBenchConfig", "abc_like_primitives", "run", "summary"]
