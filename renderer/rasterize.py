@@ -55,6 +55,13 @@ def _visible(means2d, extents, valid, camera: RasterCamera) -> torch.Tensor:
     return valid & (extents > 0).all(1) & inside & (torch.maximum(lo, torch.zeros_like(lo)) <= hi).all(1)
 
 
+def _project_reference(prims: Primitives, act: Activated, camera: RasterCamera, config: RasterConfig):
+    """The reference projection in the primitives' dtype."""
+    dtype = prims.means.dtype
+    return ref.project(prims.means, act.scales, prims.quats, act.support_q, camera.K.to(dtype),
+                       camera.w2c.to(dtype), camera.width, camera.height, camera.near, config.eps2d)
+
+
 def _render_one(
     prims: Primitives, act: Activated, camera: RasterCamera, config: RasterConfig
 ) -> RenderOutput:
@@ -84,19 +91,7 @@ def _render_one(
             background,
         )
     else:
-        dtype = prims.means.dtype
-        means2d, conics, depths, extents, valid = ref.project(
-            prims.means,
-            act.scales,
-            prims.quats,
-            act.support_q,
-            camera.K.to(dtype),
-            camera.w2c.to(dtype),
-            w,
-            h,
-            camera.near,
-            config.eps2d,
-        )
+        means2d, conics, depths, extents, valid = _project_reference(prims, act, camera, config)
         if means2d.requires_grad:
             means2d.retain_grad()
         image, alpha, depth = ref.rasterize(
@@ -178,18 +173,7 @@ def fisher_reference(primitives: Primitives, camera: RasterCamera, config: Raste
     with torch.enable_grad():
         act = activate(primitives, config)
         dtype = primitives.means.dtype
-        means2d, conics, depths, extents, valid = ref.project(
-            primitives.means,
-            act.scales,
-            primitives.quats,
-            act.support_q,
-            camera.K.to(dtype),
-            camera.w2c.to(dtype),
-            camera.width,
-            camera.height,
-            camera.near,
-            config.eps2d,
-        )
+        means2d, conics, depths, extents, valid = _project_reference(primitives, act, camera, config)
         return ref.fisher_per_view(
             means2d.detach(),
             conics.detach(),

@@ -27,6 +27,7 @@ from edgedog.renderer.config import (
 )
 from edgedog.renderer.primitives import Primitives, RasterCamera, activate
 from edgedog.renderer.rasterize import fisher_information, fisher_reference, rasterize
+from raster_builders import random_primitives
 
 from edgedog.builtin_scene import orbit_cameras
 
@@ -57,19 +58,6 @@ def make_camera(width=64, height=48, view=0, focal=160.0, views=8, near=0.01) ->
     cam = orbit_cameras(views, 64)[view]
     K = torch.tensor([[focal, 0, (width - 1) / 2], [0, focal, (height - 1) / 2], [0, 0, 1]], dtype=F64)
     return RasterCamera(K, torch.as_tensor(cam.w2c, dtype=F64), width, height, near)
-
-
-def random_primitives(n=150, channels=1, seed=0, spread=0.3, dtype=F64) -> Primitives:
-    """Thin anisotropic primitives around (0.5, 0.5, 0.5), random rotations, opacities, DoG shapes."""
-    g = torch.Generator().manual_seed(seed)
-    means = 0.5 + spread * torch.randn(n, 3, generator=g, dtype=F64)
-    log_scales = torch.log(torch.tensor([0.03, 0.005, 0.005], dtype=F64)) \
-        + 0.3 * torch.randn(n, 3, generator=g, dtype=F64)
-    quats = torch.randn(n, 4, generator=g, dtype=F64)
-    opacity_logits = torch.randn(n, generator=g, dtype=F64) + 1.0
-    k_raw = 0.8 * torch.randn(n, 2, generator=g, dtype=F64)
-    colors = torch.rand(n, channels, generator=g, dtype=F64)
-    return Primitives(*(x.to(dtype) for x in (means, log_scales, quats, opacity_logits, k_raw, colors)))
 
 
 def leaf_copy(prims: Primitives, dtype) -> Primitives:

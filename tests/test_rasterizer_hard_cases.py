@@ -14,6 +14,7 @@ import torch
 from edgedog.renderer.config import ALPHA_MAX, EARLY_STOP_T, FRUSTUM_SLACK, RasterConfig
 from edgedog.renderer.primitives import Primitives, RasterCamera, activate
 from edgedog.renderer.rasterize import fisher_information, fisher_reference, rasterize
+from raster_builders import random_primitives
 
 from edgedog.builtin_scene import orbit_cameras
 
@@ -40,18 +41,6 @@ def axis_camera(width=64, height=48, focal=80.0, near=0.25, cx=None, cy=None) ->
     cy = (height - 1) / 2 if cy is None else cy
     K = torch.tensor([[focal, 0, cx], [0, focal, cy], [0, 0, 1]], dtype=F64)
     return RasterCamera(K, torch.eye(4, dtype=F64), width, height, near)
-
-
-def random_primitives(n=100, channels=1, seed=0, spread=0.3, dtype=F64) -> Primitives:
-    g = torch.Generator().manual_seed(seed)
-    means = 0.5 + spread * torch.randn(n, 3, generator=g, dtype=F64)
-    log_scales = torch.log(torch.tensor([0.03, 0.005, 0.005], dtype=F64)) \
-        + 0.3 * torch.randn(n, 3, generator=g, dtype=F64)
-    quats = torch.randn(n, 4, generator=g, dtype=F64)
-    opacity_logits = torch.randn(n, generator=g, dtype=F64) + 1.0
-    k_raw = 0.8 * torch.randn(n, 2, generator=g, dtype=F64)
-    colors = torch.rand(n, channels, generator=g, dtype=F64)
-    return Primitives(*(x.to(dtype) for x in (means, log_scales, quats, opacity_logits, k_raw, colors)))
 
 
 def placed_primitives(means, scales=(0.05, 0.02, 0.02), channels=1, logit=1.0) -> Primitives:
