@@ -9,7 +9,6 @@ Views lie on a sphere of radius 4 around (0.5, 0.5, 0.5) as in ABC-NEF; the obje
 from __future__ import annotations
 
 import json
-import os
 import shutil
 from pathlib import Path
 
@@ -17,6 +16,7 @@ import cv2
 import numpy as np
 from plyfile import PlyData, PlyElement
 
+from edgedog.files import default_cache
 from edgedog.groundtruth import GT_SPACING, resample_polyline
 from edgedog.scenes.camera import OPENGL_TO_OPENCV, Camera, intrinsics, rigid_inverse
 
@@ -38,11 +38,6 @@ FACES = [  # corner indices, counter-clockwise seen from outside, with outward n
     ((0, 1, 3, 2), (0, 0, -1)), ((4, 6, 7, 5), (0, 0, 1)),
 ]
 EDGES = sorted({tuple(sorted((f[k], f[(k + 1) % 4]))) for f, _ in FACES for k in range(4)})
-
-
-def default_cache() -> Path:
-    """Where generated scenes are kept: $EDGEDOG_CACHE, else ~/.cache/edgedog."""
-    return Path(os.environ.get("EDGEDOG_CACHE", Path.home() / ".cache" / "edgedog"))
 
 
 def orbit_cameras(views: int, size: int) -> list[Camera]:

@@ -19,3 +19,7 @@ class InputError(EdgeDogError):
         self.path = Path(path)
         self.problem = problem
         super().__init__(f"{self.path}: {problem}")
+
+
+class ConfigError(EdgeDogError):
+    """An option or setting that cannot be used (unknown name, value out of range)."""

@@ -43,6 +43,12 @@ def atomic_write_json(path: str | Path, value: Any) -> Path:
     return atomic_write_bytes(path, (json.dumps(value, indent=2) + "\n").encode("utf-8"))
 
 
+def default_cache() -> Path:
+    """Where generated data is kept (built-in scenes, edge maps of read-only scenes):
+    $EDGEDOG_CACHE, else ~/.cache/edgedog."""
+    return Path(os.environ.get("EDGEDOG_CACHE", Path.home() / ".cache" / "edgedog"))
+
+
 def read_json(path: Path) -> Any:
     """Parse a JSON file; a missing or malformed file is an InputError naming it."""
     try:

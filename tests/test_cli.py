@@ -82,7 +82,8 @@ def test_eval_rejects_a_truncated_prediction(builtin_scene_dir, tmp_path):
     assert result.stderr.count("\n") == 1
 
 
-@pytest.mark.parametrize("args", [["--help"], ["info", "--help"], ["eval", "--help"], ["demo", "--help"]])
+@pytest.mark.parametrize("args", [["--help"], ["info", "--help"], ["edges", "--help"], ["eval", "--help"],
+                                  ["bench", "raster", "--help"], ["demo", "--help"]])
 def test_help(args):
     result = edgedog(*args)
     assert result.returncode == 0 and "usage: edgedog" in result.stdout
@@ -93,3 +94,24 @@ def test_demo_generates_and_describes_the_builtin_scene(tmp_path):
     assert result.returncode == 0, result.stderr
     assert (tmp_path / "scenes" / "box" / "transforms_train.json").is_file()
     assert "edge maps     exact" in result.stdout
+
+
+def test_edges_computes_then_reuses_maps(builtin_scene_dir, tmp_path):
+    import shutil
+
+    scene = tmp_path / "box"
+    shutil.copytree(builtin_scene_dir, scene)
+    first = edgedog("edges", scene, "--detector", "canny", "--downscale", "2")
+    assert first.returncode == 0, first.stderr
+    assert "50 computed now" in first.stdout and "s per megapixel" in first.stdout
+    second = edgedog("edges", scene, "--detector", "canny", "--downscale", "2")
+    assert "0 computed now" in second.stdout
+    provided = edgedog("edges", scene, "--detector", "exact")
+    assert "using the scene's own 'exact' maps" in provided.stdout
+
+
+def test_edges_rejects_an_unknown_detector(builtin_scene_dir):
+    result = edgedog("edges", builtin_scene_dir, "--detector", "foo")
+    assert result.returncode == 2
+    assert result.stderr.startswith("edgedog: error: unknown detector 'foo'")
+    assert result.stderr.count("\n") == 1

@@ -6,8 +6,9 @@ import argparse
 import time
 from pathlib import Path
 
-from edgedog.builtin_scene import builtin_scene_path, default_cache
+from edgedog.builtin_scene import builtin_scene_path
 from edgedog.commands.info import summary
+from edgedog.files import default_cache
 from edgedog.scenes import load_scene
 
 

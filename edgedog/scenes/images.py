@@ -13,12 +13,14 @@ Background = tuple[float, float, float] | None
 """RGB in [0, 1] to composite RGBA images on, or None to drop the alpha channel."""
 
 
-def read_raw(path: Path, expected_size: tuple[int, int] | None = None) -> np.ndarray:
+def read_raw(path: Path, expected_size: tuple[int, int] | None = None,
+             also_allowed: tuple[int, int] | None = None) -> np.ndarray:
     """Decode an image file as stored (8 or 16 bit, 1, 3 or 4 channels; colour as RGB(A)).
 
     Args:
         path: the file.
         expected_size: (width, height) the scene's camera declares for it, checked when given.
+        also_allowed: another accepted (width, height), e.g. the downscaled size of a cached map.
     Returns:
         (H, W) or (H, W, C) array of the file's dtype.
     """
@@ -29,7 +31,7 @@ def read_raw(path: Path, expected_size: tuple[int, int] | None = None) -> np.nda
         raise InputError(path, "cannot be decoded as an image")
     if expected_size is not None:
         height, width = image.shape[:2]
-        if (width, height) != tuple(expected_size):
+        if (width, height) not in (tuple(expected_size), also_allowed):
             raise InputError(
                 path,
                 f"image is {width}x{height} pixels but the camera expects "

@@ -84,9 +84,13 @@ class Scene:
         return [self.camera(i) for i in range(len(self.views))]
 
     def _read(self, path: Path, index: int) -> np.ndarray:
-        """File -> float32 at the loaded resolution, checked against the view's camera."""
+        """File -> float32 at the loaded resolution, checked against the view's camera.
+
+        Files at the camera's resolution are resized; files already at the loaded resolution
+        (edge maps computed after downscaling) are used as they are.
+        """
         full, loaded = self.views[index].camera, self.camera(index)
-        image = to_unit_float(read_raw(path, (full.width, full.height)))
+        image = to_unit_float(read_raw(path, (full.width, full.height), (loaded.width, loaded.height)))
         return resize_to(image, loaded.width, loaded.height)
 
     def load_image(self, index: int) -> np.ndarray:

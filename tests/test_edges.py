@@ -1,0 +1,108 @@
+"""Weight-free detectors, detector names, and the per-scene edge-map cache."""
+
+from __future__ import annotations
+
+import shutil
+
+import numpy as np
+import pytest
+
+from edgedog.edges import cache
+from edgedog.edges.cache import ensure_edge_maps, maps_folder
+from edgedog.edges.classical import CannyDetector, SobelDetector
+from edgedog.edges.registry import make_detector
+from edgedog.errors import ConfigError
+from edgedog.scenes import load_scene
+
+
+def step_image(size=64, column=32) -> np.ndarray:
+    image = np.zeros((size, size, 3), np.float32)
+    image[:, column:] = 0.8
+    return image
+
+
+@pytest.mark.parametrize("detector", [SobelDetector(), CannyDetector()])
+def test_weight_free_detectors_find_a_step_edge(detector):
+    edges = detector.detect(step_image())
+    assert edges.shape == (64, 64) and edges.dtype == np.float32
+    assert 0 <= edges.min() and edges.max() <= 1
+    profile = edges[32]
+    assert abs(int(np.argmax(profile)) - 31.5) <= 1.5  # the step lies between columns 31 and 32
+    assert profile.max() > 0.5 and profile[:20].max() == 0 and profile[44:].max() < 1e-3
+
+
+def test_flat_image_has_no_edges():
+    flat = np.full((32, 48, 3), 0.5, np.float32)
+    assert SobelDetector().detect(flat).max() == 0
+    assert CannyDetector().detect(flat).max() == 0
+
+
+def test_detector_names():
+    assert make_detector("canny").name == "canny"
+    assert make_detector("sobel").fingerprint.startswith("sobel")
+    with pytest.raises(ConfigError, match="unknown detector 'foo'"):
+        make_detector("foo")
+    with pytest.raises(ConfigError):
+        make_detector("pidinet:side9")
+
+
+def test_auto_without_weights_is_weight_free(monkeypatch):
+    monkeypatch.delenv("EDGEDOG_PIDINET", raising=False)
+    assert make_detector("auto").name == "canny"
+
+
+@pytest.fixture
+def box_scene(builtin_scene_dir, tmp_path):
+    folder = tmp_path / "box"
+    shutil.copytree(builtin_scene_dir, folder)
+    return folder
+
+
+def test_maps_are_computed_once_attached_and_reused(box_scene):
+    scene = load_scene(box_scene)
+    run = ensure_edge_maps(scene, CannyDetector(), progress=False)
+    assert run.computed == len(scene) and run.seconds > 0 and run.megapixels == pytest.approx(50 * 0.16)
+    assert "canny" in scene.detectors
+    edges = scene.load_edge_map(3, "canny")
+    assert edges.shape == (400, 400) and edges.max() > 0.5
+    # A new process (a fresh scene object) finds the cache and computes nothing.
+    again = load_scene(box_scene)
+    rerun = ensure_edge_maps(again, CannyDetector(), progress=False)
+    assert rerun.computed == 0 and rerun.folder == run.folder
+    np.testing.assert_array_equal(again.load_edge_map(3, "canny"), edges)
+
+
+def test_an_interrupted_run_resumes(box_scene):
+    scene = load_scene(box_scene)
+    run = ensure_edge_maps(scene, SobelDetector(), progress=False)
+    (run.folder / "manifest.json").unlink()
+    (run.folder / f"{scene.views[7].name}.png").unlink()
+    rerun = ensure_edge_maps(load_scene(box_scene), SobelDetector(), progress=False)
+    assert rerun.computed == 1 and (run.folder / "manifest.json").is_file()
+
+
+def test_each_resolution_has_its_own_maps(box_scene):
+    full, half = load_scene(box_scene), load_scene(box_scene, downscale=2)
+    assert maps_folder(full, CannyDetector()) != maps_folder(half, CannyDetector())
+    ensure_edge_maps(half, CannyDetector(), progress=False)
+    assert half.load_edge_map(0, "canny").shape == (200, 200)
+
+
+def test_provided_maps_are_used_unless_recomputed(box_scene):
+    scene = load_scene(box_scene)
+    exact = CannyDetector()
+    exact.name = "exact"  # the built-in scene ships 'exact' maps
+    assert ensure_edge_maps(scene, exact, progress=False).folder is None
+    provided = scene.load_edge_map(0, "exact")
+    run = ensure_edge_maps(scene, exact, recompute=True, progress=False)
+    assert run.computed == len(scene)
+    assert not np.array_equal(scene.load_edge_map(0, "exact"), provided)
+
+
+def test_read_only_scenes_cache_in_the_user_cache(box_scene, tmp_path, monkeypatch):
+    monkeypatch.setenv("EDGEDOG_CACHE", str(tmp_path / "cache"))
+    monkeypatch.setattr(cache.os, "access", lambda path, mode: False)  # root can write anywhere
+    scene = load_scene(box_scene)
+    run = ensure_edge_maps(scene, CannyDetector(), progress=False)
+    assert (tmp_path / "cache") in run.folder.parents
+    assert not (box_scene / cache.CACHE_FOLDER).exists()
