@@ -28,7 +28,8 @@ def add_parser(subparsers) -> None:
                                          "scene (PiDiNet variants when their weights are found).")
     edges.add_argument("--size", type=int, default=800, help="image width and height")
     edges.add_argument("--repeats", type=int, default=3)
-    edges.add_argument("--weights", type=Path, default=None, help="PiDiNet weights (default $EDGEDOG_PIDINET)")
+    edges.add_argument("--weights", type=Path, default=None,
+                       help="PiDiNet weights (default $EDGEDOG_PIDINET)")
     edges.add_argument("--json", type=Path, default=None, help="also write the result here")
     edges.set_defaults(run=run_edges)
 
