@@ -6,10 +6,10 @@ import argparse
 import sys
 
 from edgedog import __version__
-from edgedog.commands import bench, demo, edges, evaluate, info
+from edgedog.commands import bench, demo, edges, evaluate, info, init, sfm
 from edgedog.errors import EdgeDogError
 
-COMMANDS = (info, edges, evaluate, bench, demo)
+COMMANDS = (info, edges, init, sfm, evaluate, bench, demo)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -82,7 +82,8 @@ def test_eval_rejects_a_truncated_prediction(builtin_scene_dir, tmp_path):
     assert result.stderr.count("\n") == 1
 
 
-@pytest.mark.parametrize("args", [["--help"], ["info", "--help"], ["edges", "--help"], ["eval", "--help"],
+@pytest.mark.parametrize("args", [["--help"], ["info", "--help"], ["edges", "--help"], ["init", "--help"],
+                                  ["sfm", "--help"], ["eval", "--help"],
                                   ["bench", "raster", "--help"], ["demo", "--help"]])
 def test_help(args):
     result = edgedog(*args)
@@ -115,3 +116,15 @@ def test_edges_rejects_an_unknown_detector(builtin_scene_dir):
     assert result.returncode == 2
     assert result.stderr.startswith("edgedog: error: unknown detector 'foo'")
     assert result.stderr.count("\n") == 1
+
+
+def test_init_reports_the_method_and_writes_points(builtin_scene_dir, tmp_path):
+    from plyfile import PlyData
+
+    out = tmp_path / "init.ply"
+    result = edgedog("init", builtin_scene_dir, "--method", "uniform", "--out", out)
+    assert result.returncode == 0, result.stderr
+    report = json.loads(result.stdout[: result.stdout.rindex("}") + 1])
+    assert report["method"] == "uniform" and report["points"] == 2500 and report["reason"] == "requested"
+    vertex = PlyData.read(str(out))["vertex"]
+    assert len(vertex) == 2500 and (vertex["scale"] > 0).all()

@@ -1,0 +1,143 @@
+"""Initial Gaussian positions and scales: triangulated SfM points on pseudo edges, the scene's
+own SfM points, or EdgeGaussians' uniform cube, chosen automatically.
+
+`initialize(scene)` is the entry point; `InitialPoints.report` records what was done and why.
+"""
+
+from __future__ import annotations
+
+import tempfile
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from edgedog.errors import ConfigError, InputError
+from edgedog.init.points import InitialPoints, nearest_neighbour_scales
+from edgedog.init.triangulate import edge_support, scene_scale_range, triangulate_known_poses
+from edgedog.init.uniform import uniform_init
+from edgedog.scenes.scene import Scene
+
+INIT_METHODS = ("auto", "triangulate", "sfm-points", "uniform")
+
+
+def uniform_for_scene(scene: Scene, count: int = 2500, side: float | None = None,
+                      seed: int = 0) -> InitialPoints:
+    """EdgeGaussians' uniform cube centred on the scene's bounds.
+
+    Args:
+        side: cube edge; default the bounds' largest extent (the cube then covers the bounds).
+    """
+    lo, hi = np.asarray(scene.bounds, dtype=np.float64)
+    side = float(np.max(hi - lo)) if side is None else float(side)
+    # EdgeGaussians' scales (0.004 to 0.005) are for a 1.1-wide cube: keep their ratio to it.
+    scale_range = (0.004 * side / 1.1, 0.005 * side / 1.1)
+    return uniform_init((lo + hi) / 2, side=side, count=count, scale_range=scale_range, seed=seed)
+
+
+def sfm_points_on_edges(scene: Scene, detector: str | None = None, min_edge_views: int = 2,
+                        edge_threshold: float = 0.3,
+                        views: list[int] | None = None) -> InitialPoints:
+    """The scene's own SfM points (COLMAP scenes), kept on pseudo edges like triangulated ones."""
+    if scene.sfm_points is None:
+        raise InputError(scene.root, "the scene has no SfM points (only COLMAP scenes carry them)")
+    positions = np.asarray(scene.sfm_points, dtype=np.float64).reshape(-1, 3)
+    views = list(range(len(scene))) if views is None else list(views)
+    report: dict[str, Any] = {"sfm_points": int(len(positions))}
+    if detector is not None and detector in scene.detectors:
+        support = edge_support(scene, positions, views, detector, edge_threshold)
+        positions = positions[support >= min_edge_views]
+        report["edge_filter"] = {"detector": detector, "threshold": float(edge_threshold),
+                                 "min_views": int(min_edge_views)}
+    elif detector is not None:
+        report["edge_filter"] = f"skipped: the scene has no '{detector}' edge maps"
+    else:
+        report["edge_filter"] = "none"
+    lo, hi = scene_scale_range(scene)
+    scales = nearest_neighbour_scales(positions, 3, lo, hi) if len(positions) else np.zeros(0)
+    report.update({"kept": int(len(positions)), "scale_clip": [lo, hi]})
+    return InitialPoints(positions, scales, "sfm-points", report)
+
+
+def initialize(scene: Scene, method: str = "auto", workdir: Path | None = None,
+               detector: str | None = None, min_points: int = 500, seed: int = 0, *,
+               views: list[int] | None = None, max_image_size: int = 1600,
+               uniform_count: int = 2500, uniform_side: float | None = None) -> InitialPoints:
+    """Initial points for a scene.
+
+    Args:
+        scene: the posed views.
+        method: "uniform"; "triangulate" (SIFT matches triangulated with the known cameras);
+            "sfm-points" (a COLMAP scene's own points); or "auto": the scene's SfM points when
+            it has at least `min_points` of them on edges, else triangulation when that keeps at
+            least `min_points`, else uniform (renders with few features).
+        workdir: where COLMAP's database and model go; a temporary folder (removed) if None.
+        detector: pseudo-edge maps that points must project onto (None: keep all points).
+        min_points: fewest points "auto" accepts before falling back.
+        seed: seed of the uniform sampling.
+        views: view indices used for triangulation and edge filtering (default all).
+        max_image_size: longest image side for SIFT.
+        uniform_count, uniform_side: the uniform cube's point count and edge (default: the
+            bounds' largest extent, centred on the bounds).
+    Returns:
+        InitialPoints whose `report` holds "requested", the chosen "method", a "reason" and,
+        for "auto", every "attempts" made with its counts.
+    """
+    if method not in INIT_METHODS:
+        raise ConfigError(f"init method must be one of {', '.join(INIT_METHODS)}, got {method!r}")
+
+    def uniform(reason: str, attempts: list[dict[str, Any]]) -> InitialPoints:
+        result = uniform_for_scene(scene, uniform_count, uniform_side, seed)
+        result.report.update({"requested": method, "reason": reason, "attempts": attempts})
+        return result
+
+    def finish(result: InitialPoints, reason: str, attempts: list[dict[str, Any]]) -> InitialPoints:
+        result.report.update({"requested": method, "reason": reason, "attempts": attempts})
+        return result
+
+    if method == "uniform":
+        return uniform("requested", [])
+    if method == "sfm-points":
+        result = sfm_points_on_edges(scene, detector, views=views)
+        return finish(result, "requested", [])
+
+    attempts: list[dict[str, Any]] = []
+    if method == "auto" and scene.sfm_points is not None:
+        result = sfm_points_on_edges(scene, detector, views=views)
+        attempts.append({"method": "sfm-points", "points": len(result)})
+        if len(result) >= min_points:
+            return finish(result, f"the scene's SfM points give {len(result)} points "
+                                  f"(>= {min_points})", attempts)
+
+    with tempfile.TemporaryDirectory(prefix="edgedog-init-") as temporary:
+        folder = Path(workdir) if workdir is not None else Path(temporary)
+        folder.mkdir(parents=True, exist_ok=True)
+        result = triangulate_known_poses(scene, folder, detector=detector,
+                                         max_image_size=max_image_size, views=views)
+    attempts.append({"method": "triangulated", "points": len(result),
+                     "triangulated": result.report["triangulated"]})
+    if method == "triangulate":
+        if len(result) == 0:
+            raise InputError(scene.root, "triangulation found no points (too few image features "
+                                         "or matches); use the uniform initialisation")
+        return finish(result, "requested", attempts)
+    if len(result) >= min_points:
+        return finish(result, f"triangulation kept {len(result)} points (>= {min_points})", attempts)
+    before = "the scene's SfM points and " if len(attempts) > 1 else ""
+    filtered = isinstance(result.report.get("edge_filter"), dict)
+    detail = (f" of {result.report['triangulated']} triangulated on '{detector}' edges"
+              if filtered else "")
+    return uniform(f"{before}triangulation kept {len(result)} points{detail}, fewer than "
+                   f"{min_points}: too few image features or matches", attempts)
+
+
+__all__ = [
+    "INIT_METHODS",
+    "InitialPoints",
+    "initialize",
+    "nearest_neighbour_scales",
+    "sfm_points_on_edges",
+    "triangulate_known_poses",
+    "uniform_for_scene",
+    "uniform_init",
+]

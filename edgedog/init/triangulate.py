@@ -1,0 +1,217 @@
+"""Structure-from-motion points with the scene's KNOWN cameras.
+
+SIFT features are extracted and matched with pycolmap, then triangulated with the scene's own
+intrinsics and poses (no pose estimation, no bundle adjustment), and optionally kept only where
+they project onto pseudo edges in several views.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+
+from edgedog.errors import InputError
+from edgedog.init.points import InitialPoints, nearest_neighbour_scales
+from edgedog.scenes.camera import Camera
+from edgedog.scenes.images import read_raw
+from edgedog.scenes.scene import Scene
+
+# Files COLMAP reads directly when they are 8-bit grey or RGB; anything else is converted.
+COLMAP_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
+
+# Scale clip range of the triangulated points, as fractions of the bounds' largest extent.
+SCALE_RANGE = (0.0005, 0.02)
+
+
+@contextmanager
+def colmap_log_level(level: int = 1) -> Iterator[None]:
+    """Show only COLMAP log messages at `level` and above (0 info, 1 warning, 2 error) inside."""
+    import pycolmap
+
+    old = pycolmap.logging.minloglevel
+    pycolmap.logging.minloglevel = level
+    try:
+        yield
+    finally:
+        pycolmap.logging.minloglevel = old
+
+
+def edge_support(scene: Scene, points: np.ndarray, views: list[int], detector: str,
+                 threshold: float = 0.3) -> np.ndarray:
+    """(N,) number of `views` in which each point projects onto a pseudo edge.
+
+    A point counts for a view when it lies in front of the camera, its rounded projection falls
+    inside the image, and the edge map there is >= `threshold`. Occlusion is not checked.
+    """
+    points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    counts = np.zeros(len(points), dtype=np.int64)
+    for index in views:
+        camera = scene.camera(index)
+        edges = scene.load_edge_map(index, detector)
+        uv, depth = camera.project(points)
+        pixels = np.rint(uv).astype(np.int64)
+        inside = (depth > 0) & (pixels[:, 0] >= 0) & (pixels[:, 0] < camera.width) \
+            & (pixels[:, 1] >= 0) & (pixels[:, 1] < camera.height)
+        hit = np.zeros(len(points), dtype=bool)
+        hit[inside] = edges[pixels[inside, 1], pixels[inside, 0]] >= threshold
+        counts += hit
+    return counts
+
+
+def scene_scale_range(scene: Scene) -> tuple[float, float]:
+    """(lo, hi) clip range of nearest-neighbour scales for a scene, from its bounds' size."""
+    size = float(np.max(scene.bounds[1] - scene.bounds[0]))
+    return SCALE_RANGE[0] * size, SCALE_RANGE[1] * size
+
+
+def _needs_conversion(path: Path, camera: Camera) -> bool:
+    """True when COLMAP cannot read `path` as it is (alpha, 16 bit, unusual format)."""
+    if path.suffix.lower() not in COLMAP_SUFFIXES:
+        return True
+    image = read_raw(path, (camera.width, camera.height))  # also checks the size
+    return image.dtype != np.uint8 or (image.ndim == 3 and image.shape[2] not in (1, 3))
+
+
+def _prepare_images(scene: Scene, views: list[int], image_dir: Path) -> dict[str, Camera]:
+    """Put the views' images into one folder COLMAP can read -> {file name: its camera}.
+
+    Plain 8-bit images are symlinked (camera at the file's resolution); RGBA, 16-bit or other
+    files are written as PNG copies composited as `scene.load_image` does (loaded resolution).
+    """
+    image_dir.mkdir(parents=True, exist_ok=True)
+    names: dict[str, Camera] = {}
+    for index in views:
+        view = scene.views[index]
+        if _needs_conversion(view.image_path, view.camera):
+            name = f"{index:05d}_{view.name}.png"
+            rgb = np.clip(np.rint(scene.load_image(index) * 255.0), 0, 255).astype(np.uint8)
+            if not cv2.imwrite(str(image_dir / name), cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR)):
+                raise OSError(f"could not write {image_dir / name}")
+            names[name] = scene.camera(index)
+        else:
+            name = f"{index:05d}_{view.name}{view.image_path.suffix.lower()}"
+            os.symlink(view.image_path.resolve(), image_dir / name)
+            names[name] = view.camera
+    return names
+
+
+def _colmap_camera(camera_id: int, camera: Camera):
+    """Our pinhole camera as a COLMAP PINHOLE camera (first pixel centre at (0.5, 0.5))."""
+    import pycolmap
+
+    K = camera.K
+    colmap_camera = pycolmap.Camera.create_from_model_name(
+        int(camera_id), "PINHOLE", float(K[0, 0]), int(camera.width), int(camera.height))
+    colmap_camera.params = [K[0, 0], K[1, 1], K[0, 2] + 0.5, K[1, 2] + 0.5]
+    colmap_camera.has_prior_focal_length = True
+    return colmap_camera
+
+
+def _known_reconstruction(database_path: Path, cameras: dict[str, Camera], image_dir: Path):
+    """A pycolmap.Reconstruction with the database's ids and names but our cameras and poses.
+
+    Also rewrites the database's cameras to the same PINHOLE models and parameters.
+    """
+    import pycolmap
+
+    reconstruction = pycolmap.Reconstruction()
+    with pycolmap.Database.open(database_path) as database:
+        images = database.read_all_images()
+        found = {image.name for image in images}
+        for name in cameras:
+            if name not in found:
+                raise InputError((image_dir / name).resolve(), "COLMAP could not read this image")
+        for image in images:
+            camera = cameras[image.name]
+            colmap_camera = _colmap_camera(image.camera_id, camera)
+            database.update_camera(colmap_camera)
+            reconstruction.add_camera_with_trivial_rig(colmap_camera)
+            pose = pycolmap.Rigid3d(pycolmap.Rotation3d(camera.R.copy()), camera.t.copy())
+            reconstruction.add_image_with_trivial_frame(
+                pycolmap.Image(name=image.name, camera_id=image.camera_id, image_id=image.image_id),
+                pose)
+    return reconstruction
+
+
+def triangulate_known_poses(scene: Scene, workdir: Path, detector: str | None = None,
+                            max_image_size: int = 1600, min_edge_views: int = 2,
+                            edge_threshold: float = 0.3,
+                            views: list[int] | None = None) -> InitialPoints:
+    """Triangulate SIFT matches with the scene's cameras; optionally keep only edge points.
+
+    Args:
+        scene: the posed views.
+        workdir: folder for COLMAP's database, image links and model (replaced if present).
+        detector: pseudo-edge maps to filter on; None (or maps the scene lacks) keeps every
+            triangulated point.
+        max_image_size: images are downsized to this longest side for SIFT.
+        min_edge_views: a point is kept when it projects onto an edge in this many views.
+        edge_threshold: edge-map value that counts as an edge.
+        views: indices of the views to use (default all).
+    Returns:
+        InitialPoints with method "triangulated"; it may hold few or no points (textureless
+        renders): `report` says how many were triangulated and kept.
+    """
+    import pycolmap
+
+    views = list(range(len(scene))) if views is None else [int(v) for v in views]
+    if len(views) < 2:
+        raise ValueError(f"triangulation needs at least 2 views, got {len(views)}")
+    if any(not 0 <= v < len(scene) for v in views):
+        raise ValueError(f"view indices must be in [0, {len(scene)}), got {views}")
+    started = time.perf_counter()
+    workdir = Path(workdir)
+    for stale in ("images", "sparse", "database.db"):
+        target = workdir / stale
+        if target.is_dir() and not target.is_symlink():
+            shutil.rmtree(target)
+        elif target.exists() or target.is_symlink():
+            target.unlink()
+    image_dir, database_path, model_dir = workdir / "images", workdir / "database.db", workdir / "sparse"
+    cameras = _prepare_images(scene, views, image_dir)
+
+    extraction = pycolmap.FeatureExtractionOptions()
+    extraction.max_image_size = int(max_image_size)
+    with colmap_log_level(2):  # COLMAP's progress and warnings are summarised in `report`
+        pycolmap.extract_features(database_path, image_dir, image_names=list(cameras),
+                                  camera_mode=pycolmap.CameraMode.PER_IMAGE,
+                                  extraction_options=extraction, device=pycolmap.Device.cpu)
+        reconstruction = _known_reconstruction(database_path, cameras, image_dir)
+        pycolmap.match_exhaustive(database_path, device=pycolmap.Device.cpu)
+        model_dir.mkdir(parents=True, exist_ok=True)
+        reconstruction = pycolmap.triangulate_points(reconstruction, database_path, image_dir,
+                                                     model_dir, refine_intrinsics=False)
+    points3d = list(reconstruction.points3D.values())
+    positions = np.array([p.xyz for p in points3d], dtype=np.float64).reshape(-1, 3)
+    track = np.array([p.track.length() for p in points3d], dtype=np.int64)
+
+    report: dict[str, Any] = {
+        "views": len(views),
+        "max_image_size": int(max_image_size),
+        "triangulated": int(len(positions)),
+        "mean_track_length": float(track.mean()) if len(track) else 0.0,
+        "mean_reprojection_error_px": float(reconstruction.compute_mean_reprojection_error())
+        if len(track) else 0.0,
+    }
+    if detector is not None and detector in scene.detectors:
+        support = edge_support(scene, positions, views, detector, edge_threshold)
+        positions = positions[support >= min_edge_views]
+        report["edge_filter"] = {"detector": detector, "threshold": float(edge_threshold),
+                                 "min_views": int(min_edge_views)}
+    elif detector is not None:
+        report["edge_filter"] = f"skipped: the scene has no '{detector}' edge maps"
+    else:
+        report["edge_filter"] = "none"
+    lo, hi = scene_scale_range(scene)
+    scales = nearest_neighbour_scales(positions, k=3, lo=lo, hi=hi) if len(positions) else np.zeros(0)
+    report.update({"kept": int(len(positions)), "scale_clip": [lo, hi],
+                   "seconds": round(time.perf_counter() - started, 2)})
+    return InitialPoints(positions, scales, "triangulated", report)

@@ -1,0 +1,198 @@
+"""Initial points: the uniform cube, nearest-neighbour scales, the edge filter, triangulation
+with known cameras on real photos (DTU scan 37) and the fallback on feature-poor renders (ABC)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from edgedog.builtin_scene import ground_truth_points, write_box_scene
+from edgedog.errors import ConfigError, InputError
+from edgedog.init import InitialPoints, initialize, nearest_neighbour_scales, uniform_init
+from edgedog.init.triangulate import edge_support
+from edgedog.scenes import load_scene
+
+SHARED_DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
+DTU_VIEWS = list(range(10, 20))  # neighbouring views of the second row of the DTU rig
+
+
+def shared(relative: str) -> Path:
+    path = SHARED_DATA / relative
+    if not path.exists():
+        pytest.skip(f"shared data not present: {path}")
+    return path
+
+
+# --- uniform cube ------------------------------------------------------------------------------
+
+def test_uniform_init_counts_cube_and_scales():
+    center = np.array([0.5, -1.0, 2.0])
+    points = uniform_init(center, side=1.1, count=2500, scale_range=(0.004, 0.005), seed=3)
+    assert points.method == "uniform"
+    assert points.positions.shape == (2500, 3) and points.positions.dtype == np.float64
+    assert points.scales.shape == (2500,) and points.scales.dtype == np.float64
+    assert np.all(np.abs(points.positions - center) <= 0.55)
+    # Uniform: the cube is filled to its faces, not just near the centre.
+    assert np.all(np.abs(points.positions - center).max(axis=0) > 0.5)
+    assert np.allclose(points.positions.mean(axis=0), center, atol=0.03)
+    assert np.all((points.scales >= 0.004) & (points.scales <= 0.005))
+    assert points.report["points"] == 2500 and points.report["side"] == 1.1
+
+
+def test_uniform_init_seed_reproducible():
+    a = uniform_init(np.zeros(3), seed=7)
+    b = uniform_init(np.zeros(3), seed=7)
+    c = uniform_init(np.zeros(3), seed=8)
+    assert np.array_equal(a.positions, b.positions) and np.array_equal(a.scales, b.scales)
+    assert not np.array_equal(a.positions, c.positions)
+    assert len(a) == 2500 and a.report["scale_range"] == [0.004, 0.005]
+
+
+def test_uniform_init_rejects_bad_arguments():
+    with pytest.raises(ValueError):
+        uniform_init(np.zeros(3), side=0)
+    with pytest.raises(ValueError):
+        uniform_init(np.zeros(3), scale_range=(0.5, 0.1))
+
+
+def test_initial_points_checks_shapes_and_method():
+    with pytest.raises(ValueError):
+        InitialPoints(np.zeros((3, 3)), np.zeros(2), "uniform")
+    with pytest.raises(ValueError):
+        InitialPoints(np.zeros((3, 3)), np.zeros(3), "random")
+
+
+# --- nearest-neighbour scales ------------------------------------------------------------------
+
+def test_nearest_neighbour_scales_on_a_grid_equal_the_spacing():
+    spacing = 0.25
+    axis = np.arange(6) * spacing
+    grid = np.stack(np.meshgrid(axis, axis, axis, indexing="ij"), axis=-1).reshape(-1, 3)
+    scales = nearest_neighbour_scales(grid + 10.0, k=3, lo=0.0, hi=1.0)
+    assert scales.shape == (len(grid),)
+    # Every grid point has at least 3 neighbours at exactly one spacing.
+    assert np.allclose(scales, spacing)
+
+
+def test_nearest_neighbour_scales_clip_and_degenerate_clouds():
+    points = np.array([[0.0, 0, 0], [0.0, 0, 0], [1.0, 0, 0], [3.0, 0, 0]])
+    assert np.allclose(nearest_neighbour_scales(points, k=1), [0.0, 0.0, 1.0, 2.0])
+    assert np.allclose(nearest_neighbour_scales(points, k=1, lo=0.1, hi=1.5), [0.1, 0.1, 1.0, 1.5])
+    assert np.allclose(nearest_neighbour_scales(points[:2] + [[0, 0, 0], [0, 2, 0]], k=5), [2.0, 2.0])
+    assert nearest_neighbour_scales(np.zeros((0, 3))).shape == (0,)
+    assert np.allclose(nearest_neighbour_scales(np.zeros((1, 3)), lo=0.01), [0.01])
+
+
+# --- synthetic box: edge filter, RGBA renders, fallback ----------------------------------------
+
+@pytest.fixture(scope="module")
+def box_scene(tmp_path_factory):
+    return load_scene(write_box_scene(tmp_path_factory.mktemp("box") / "box", views=12, size=300))
+
+
+def test_edge_support_counts_views_where_points_fall_on_edges(box_scene):
+    views = list(range(len(box_scene)))
+    on_edges = ground_truth_points()[::10]
+    support = edge_support(box_scene, on_edges, views, "exact", 0.3)
+    # A box edge is visible (one of its faces faces the camera) in about half of the views.
+    assert np.median(support) >= 3
+    lo, hi = box_scene.bounds
+    off_object = np.array([[lo[0], lo[1], lo[2]], [hi[0], hi[1], hi[2]], [lo[0], hi[1], lo[2]]])
+    assert np.all(edge_support(box_scene, off_object, views, "exact", 0.3) == 0)
+
+
+def test_auto_falls_back_to_uniform_on_featureless_renders(box_scene, tmp_path):
+    # Flat-shaded RGBA renders (composited for COLMAP) give SIFT nothing to triangulate.
+    result = initialize(box_scene, "auto", workdir=tmp_path / "colmap", detector="exact",
+                        min_points=50, seed=1)
+    assert result.method == "uniform"
+    assert result.report["requested"] == "auto"
+    assert result.report["attempts"][0]["method"] == "triangulated"
+    assert result.report["attempts"][0]["points"] < 50
+    assert "fewer than 50" in result.report["reason"]
+    lo, hi = box_scene.bounds
+    assert np.all((result.positions >= lo) & (result.positions <= hi))
+    assert len(list((tmp_path / "colmap" / "images").glob("*.png"))) == len(box_scene)
+    with pytest.raises(InputError, match="triangulation found no points"):
+        initialize(box_scene, "triangulate", workdir=tmp_path / "colmap", views=[0, 1, 2, 3])
+
+
+def test_initialize_uniform_and_unknown_method(box_scene):
+    result = initialize(box_scene, "uniform", uniform_count=100, seed=2)
+    assert result.method == "uniform" and len(result) == 100
+    assert result.report["reason"] == "requested"
+    with pytest.raises(ConfigError, match="init method"):
+        initialize(box_scene, "random")
+    with pytest.raises(InputError, match="no SfM points"):
+        initialize(box_scene, "sfm-points")
+
+
+# --- DTU scan 37: real photos, given cameras ---------------------------------------------------
+
+@pytest.fixture(scope="module")
+def dtu_triangulated(tmp_path_factory):
+    scene = load_scene(shared("dtu_scan37"), downscale=2)
+    workdir = tmp_path_factory.mktemp("dtu_colmap")
+    result = initialize(scene, "auto", workdir=workdir, min_points=200, views=DTU_VIEWS,
+                        max_image_size=800)
+    return scene, result
+
+
+def test_dtu_triangulation_with_known_cameras(dtu_triangulated):
+    scene, result = dtu_triangulated
+    assert result.method == "triangulated", result.report
+    # Measured: 2396 points triangulated from 10 views at 800 px, all kept (no edge maps).
+    assert len(result) >= 500
+    assert result.report["triangulated"] == result.report["kept"] == len(result)
+    assert result.report["edge_filter"] == "none"
+    assert result.report["mean_reprojection_error_px"] < 2.0
+    assert "triangulation kept" in result.report["reason"]
+    assert np.all(np.isfinite(result.scales)) and np.all(result.scales > 0)
+    lo, hi = scene.bounds
+    inside = np.all((result.positions >= lo) & (result.positions <= hi), axis=1)
+    assert inside.mean() >= 0.95  # measured 0.999
+
+
+def test_dtu_triangulated_points_project_inside_the_object_masks(dtu_triangulated):
+    scene, result = dtu_triangulated
+    fractions = []
+    for index in range(0, len(scene), 4):  # used views and views the points never saw
+        camera, mask = scene.camera(index), scene.load_mask(index)
+        uv, depth = camera.project(result.positions)
+        pixels = np.rint(uv).astype(int)
+        inside = (depth > 0) & (pixels[:, 0] >= 0) & (pixels[:, 0] < camera.width) \
+            & (pixels[:, 1] >= 0) & (pixels[:, 1] < camera.height)
+        if inside.sum() >= 50:
+            fractions.append(mask[pixels[inside, 1], pixels[inside, 0]].mean())
+    fractions = np.array(fractions)
+    # Measured: 0.975 to 0.994 of the points inside the mask in every one of the 49 views.
+    assert len(fractions) >= 10
+    assert np.mean(fractions >= 0.9) >= 0.8
+    assert np.median(fractions) >= 0.95
+
+
+# --- ABC 00000006: grey CAD renders with few features ------------------------------------------
+
+def test_abc_auto_triangulates_on_edges_or_falls_back_with_a_reason(tmp_path):
+    scene = load_scene(shared("abc_nef/00000006"))
+    min_points = 500
+    result = initialize(scene, "auto", workdir=tmp_path / "colmap", detector="pidinet",
+                        min_points=min_points, views=list(range(0, 50, 5)))
+    report = result.report
+    attempt = report["attempts"][-1]
+    assert attempt["method"] == "triangulated"
+    # Measured: the renders give 10 to 37 SIFT keypoints per view and no verified matches, so
+    # nothing is triangulated and the cube is used.
+    if result.method == "uniform":
+        assert attempt["points"] < min_points
+        assert f"fewer than {min_points}" in report["reason"]
+        assert len(result) == 2500
+    else:
+        assert result.method == "triangulated" and len(result) >= min_points
+        assert report["edge_filter"]["detector"] == "pidinet"
+        support = edge_support(scene, result.positions, list(range(0, 50, 5)), "pidinet", 0.3)
+        assert np.all(support >= 2)
+    lo, hi = scene.bounds
+    assert np.all((result.positions >= lo - 1e-9) & (result.positions <= hi + 1e-9))
