@@ -25,8 +25,12 @@ CACHE_FOLDER = "edgedog_edges"
 
 
 def cache_root(scene: Scene) -> Path:
-    """`<scene>/edgedog_edges` when writable, else a folder of the user cache for this scene."""
-    if os.access(scene.root, os.W_OK):
+    """`<scene>/edgedog_edges` when writable, else a folder of the user cache for this scene.
+
+    A folder without any write permission bit counts as read-only even for root (who may write
+    anywhere): shared datasets are read in place and never written into.
+    """
+    if os.access(scene.root, os.W_OK) and scene.root.stat().st_mode & 0o222:
         return scene.root / CACHE_FOLDER
     digest = hashlib.sha1(str(scene.root).encode()).hexdigest()[:12]
     return default_cache() / "edges" / f"{scene.root.name}-{digest}"
