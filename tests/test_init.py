@@ -3,10 +3,9 @@ with known cameras on real photos (DTU scan 37) and the fallback on feature-poor
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
+from conftest import shared_path as shared
 
 from edgedog.builtin_scene import ground_truth_points, write_box_scene
 from edgedog.errors import ConfigError, InputError
@@ -14,15 +13,7 @@ from edgedog.init import InitialPoints, initialize, nearest_neighbour_scales, un
 from edgedog.init.triangulate import edge_support
 from edgedog.scenes import load_scene
 
-SHARED_DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 DTU_VIEWS = list(range(10, 20))  # neighbouring views of the second row of the DTU rig
-
-
-def shared(relative: str) -> Path:
-    path = SHARED_DATA / relative
-    if not path.exists():
-        pytest.skip(f"shared data not present: {path}")
-    return path
 
 
 # --- uniform cube ------------------------------------------------------------------------------

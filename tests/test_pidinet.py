@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 import torch
 import torch.nn.functional as F
+from conftest import shared_path
 
 from edgedog.edges.pidinet import (
     WEIGHTS_MISSING,
@@ -20,16 +21,11 @@ from edgedog.edges.pidinet import (
 )
 from edgedog.errors import InputError
 
-SHARED = Path(__file__).resolve().parents[1].parent / "shared"
-MODELS = SHARED / "models" / "pidinet"
 URL = "https://github.com/hellozhuo/pidinet"
 
 
 def _weights(name: str) -> Path:
-    path = MODELS / name
-    if not path.is_file():
-        pytest.skip(f"shared model not present: {path}")
-    return path
+    return shared_path(f"../models/pidinet/{name}")
 
 
 @pytest.fixture(scope="module")
@@ -117,7 +113,7 @@ def test_network_runs_only_plain_convolutions():
 
 @pytest.mark.parametrize("view", [0, 24, 49])  # spread over the 50 training views
 def test_reproduces_the_abc_nef_pidinet_maps(bsds, view):
-    scene = SHARED / "data" / "abc_nef" / "00000006"
+    scene = shared_path("abc_nef/00000006")
     image_path = scene / "train_img" / f"{view}_colors.png"
     map_path = scene / "train" / f"{view}_colors.png"
     if not (image_path.is_file() and map_path.is_file()):

@@ -5,26 +5,18 @@ from __future__ import annotations
 import argparse
 import shutil
 import sys
-from pathlib import Path
 
 import cv2
 import numpy as np
 import pytest
+from conftest import shared_path as shared
 
 from edgedog.errors import EdgeDogError, InputError
 from edgedog.init import initialize
 from edgedog.init.sfm import align_similarity, run_sfm
 from edgedog.scenes import load_scene
 
-SHARED_DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 DTU_VIEWS = list(range(10, 20))  # neighbouring views of the second row of the DTU rig
-
-
-def shared(relative: str) -> Path:
-    path = SHARED_DATA / relative
-    if not path.exists():
-        pytest.skip(f"shared data not present: {path}")
-    return path
 
 
 def run_command(argv: list[str]) -> int:

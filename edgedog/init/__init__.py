@@ -14,7 +14,7 @@ import numpy as np
 
 from edgedog.errors import ConfigError, InputError
 from edgedog.init.points import InitialPoints, nearest_neighbour_scales
-from edgedog.init.triangulate import edge_support, scene_scale_range, triangulate_known_poses
+from edgedog.init.triangulate import keep_on_edges, triangulate_known_poses
 from edgedog.init.uniform import uniform_init
 from edgedog.scenes.scene import Scene
 
@@ -43,20 +43,8 @@ def sfm_points_on_edges(scene: Scene, detector: str | None = None, min_edge_view
         raise InputError(scene.root, "the scene has no SfM points (only COLMAP scenes carry them)")
     positions = np.asarray(scene.sfm_points, dtype=np.float64).reshape(-1, 3)
     views = list(range(len(scene))) if views is None else list(views)
-    report: dict[str, Any] = {"sfm_points": int(len(positions))}
-    if detector is not None and detector in scene.detectors:
-        support = edge_support(scene, positions, views, detector, edge_threshold)
-        positions = positions[support >= min_edge_views]
-        report["edge_filter"] = {"detector": detector, "threshold": float(edge_threshold),
-                                 "min_views": int(min_edge_views)}
-    elif detector is not None:
-        report["edge_filter"] = f"skipped: the scene has no '{detector}' edge maps"
-    else:
-        report["edge_filter"] = "none"
-    lo, hi = scene_scale_range(scene)
-    scales = nearest_neighbour_scales(positions, 3, lo, hi) if len(positions) else np.zeros(0)
-    report.update({"kept": int(len(positions)), "scale_clip": [lo, hi]})
-    return InitialPoints(positions, scales, "sfm-points", report)
+    return keep_on_edges(scene, positions, "sfm-points", {"sfm_points": int(len(positions))}, views,
+                         detector, edge_threshold, min_edge_views)
 
 
 def initialize(scene: Scene, method: str = "auto", workdir: Path | None = None,

@@ -201,6 +201,16 @@ def triangulate_known_poses(scene: Scene, workdir: Path, detector: str | None = 
         "mean_reprojection_error_px": float(reconstruction.compute_mean_reprojection_error())
         if len(track) else 0.0,
     }
+    report["seconds"] = round(time.perf_counter() - started, 2)
+    return keep_on_edges(scene, positions, "triangulated", report, views, detector, edge_threshold,
+                         min_edge_views)
+
+
+def keep_on_edges(scene: Scene, positions: np.ndarray, method: str, report: dict[str, Any],
+                  views: list[int], detector: str | None, edge_threshold: float,
+                  min_edge_views: int) -> InitialPoints:
+    """Points (N, 3) that land on `detector`'s edges in >= min_edge_views views, with scales from
+    their neighbours' distances; `report` gains the filter used and the count kept."""
     if detector is not None and detector in scene.detectors:
         support = edge_support(scene, positions, views, detector, edge_threshold)
         positions = positions[support >= min_edge_views]
@@ -212,6 +222,5 @@ def triangulate_known_poses(scene: Scene, workdir: Path, detector: str | None = 
         report["edge_filter"] = "none"
     lo, hi = scene_scale_range(scene)
     scales = nearest_neighbour_scales(positions, k=3, lo=lo, hi=hi) if len(positions) else np.zeros(0)
-    report.update({"kept": int(len(positions)), "scale_clip": [lo, hi],
-                   "seconds": round(time.perf_counter() - started, 2)})
-    return InitialPoints(positions, scales, "triangulated", report)
+    report.update({"kept": int(len(positions)), "scale_clip": [lo, hi]})
+    return InitialPoints(positions, scales, method, report)
