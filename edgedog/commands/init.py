@@ -26,6 +26,9 @@ def add_parser(subparsers) -> None:
     parser.add_argument("--detector", default=None,
                         help="keep only points that project onto this detector's edge maps in 2+ views")
     parser.add_argument("--min-points", type=int, default=500, help="fewest points 'auto' accepts")
+    parser.add_argument("--uniform-side", type=float, default=None,
+                        help="edge of the uniform cube (default: the scene bounds' largest extent; "
+                             "EdgeGaussians uses 1.1 for ABC objects)")
     parser.add_argument("--out", type=Path, default=None, help="write the points as a PLY (x, y, z, scale)")
     add_scene_options(parser)
     parser.set_defaults(run=run)
@@ -35,7 +38,8 @@ def run(args: argparse.Namespace) -> None:
     from edgedog.init import initialize
 
     scene = open_scene(args.scene, args)
-    points = initialize(scene, args.method, detector=args.detector, min_points=args.min_points)
+    points = initialize(scene, args.method, detector=args.detector, min_points=args.min_points,
+                        uniform_side=args.uniform_side)
     print(json.dumps({"method": points.method, "points": len(points), **points.report}, indent=2,
                      default=str))
     if args.out is not None:
