@@ -232,7 +232,7 @@ void rasterize_backward(const Splats& s, const Frame& f, const TileView& tiles,
 #pragma omp parallel
   {
     float* g = buffers.of(omp_get_thread_num());
-#pragma omp for schedule(dynamic, 4)
+#pragma omp for schedule(static, 4)  // fixed tile-to-thread map: reproducible sums
     for (int index = 0; index < num_tiles; ++index) {
       walk_tile_backwards(s, f, tiles, index, final_T, last,
           [&](int32_t i, const Footprint& fp, const PixelHit& h, int64_t pix, float T,
@@ -291,7 +291,7 @@ void rasterize_fisher(const Splats& s, const Frame& f, const TileView& tiles, co
 #pragma omp parallel
   {
     float* g = buffers.of(omp_get_thread_num());
-#pragma omp for schedule(dynamic, 4)
+#pragma omp for schedule(static, 4)  // fixed tile-to-thread map: reproducible sums
     for (int index = 0; index < num_tiles; ++index) {
       walk_tile_backwards(s, f, tiles, index, final_T, last,
           [&](int32_t i, const Footprint& fp, const PixelHit& h, int64_t, float T,

@@ -6,10 +6,10 @@ import argparse
 import sys
 
 from edgedog import __version__
-from edgedog.commands import bench, demo, edges, evaluate, info, init, sfm
+from edgedog.commands import bench, demo, edges, evaluate, info, init, sfm, train
 from edgedog.errors import EdgeDogError
 
-COMMANDS = (info, edges, init, sfm, evaluate, bench, demo)
+COMMANDS = (info, edges, init, sfm, train, evaluate, bench, demo)
 
 
 def build_parser() -> argparse.ArgumentParser:

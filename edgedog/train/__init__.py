@@ -1,0 +1,1 @@
+"""The EdgeDoG trainer: EdgeGaussians' schedule plus the DoG kernel and the dual uncertainty."""

@@ -1,0 +1,187 @@
+"""Typed training configuration, its presets, and `--set key=value` overrides."""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Literal
+
+from edgedog.errors import ConfigError
+
+Weighting = Literal["one", "exp_neg", "one_minus", "up", "exp"]
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """Every setting of a run. Defaults are the paper preset for ABC (EdgeGaussians' schedule).
+
+    Epochs count passes over the views, one view per step, in a seeded random order.
+    """
+
+    # --- data and initialisation
+    detector: str = "auto"
+    """Pseudo-edge maps to fit: a scene's own maps by name (e.g. 'pidinet'), or a detector name."""
+    downscale: int = 1
+    """Train at 1/downscale resolution."""
+    init_method: str = "auto"
+    """'auto' | 'triangulate' | 'sfm-points' | 'uniform' (see edgedog.init)."""
+    init_count: int = 2500
+    """Points of the uniform initialisation."""
+    init_side: float | None = 1.1
+    """Edge of the uniform cube (EdgeGaussians: 1.1 around the object for ABC); None: the bounds."""
+    init_opacity: float = 0.08
+    """Initial opacity of every primitive."""
+    k_init: tuple[float, float] = (0.0, 0.0)
+    """Raw DoG shape k at initialisation (the paper's 0)."""
+
+    # --- rasterizer
+    kernel: Literal["dog", "gaussian"] = "dog"
+    """'dog' (EdgeDoG) or 'gaussian' (the EdgeGaussians baseline)."""
+    k_activation: Literal["sigmoid", "exp"] = "sigmoid"
+    """Activation of k: 'sigmoid' for ABC, 'exp' for other data (docs/METHOD.md)."""
+
+    # --- schedule
+    epochs: int = 400
+    lr_means: float = 2e-3
+    lr_means_decay_epochs: tuple[int, ...] = (10, 20, 30, 40, 50)
+    lr_means_decay: float = 0.75
+    lr_scales: float = 1e-4
+    scales_from_epoch: int = 30
+    lr_opacity: float = 0.03
+    opacity_from_epoch: int = 20
+    lr_quats: float = 1e-3
+    quats_from_epoch: int = 30
+    lr_k: float = 1e-4
+
+    # --- losses
+    edge_threshold: float = 0.5
+    """Edge pixels of a map are those >= this value."""
+    sampled_loss_from_epoch: int = 50
+    """After this epoch, every `sampled_loss_every` steps the L1 is taken on the edge pixels plus
+    as many random background pixels instead of the whole image."""
+    sampled_loss_every: int = 5
+    direction_from_epoch: int = 250
+    ratio_from_epoch: int = 100
+    orientation_every: int = 5
+    """The direction and scale-ratio losses are applied every this many steps."""
+    direction_neighbours: int = 5
+    direction_factor: float = 0.1
+    """Direction loss weight, as a fraction of the running projection loss (0.01 for DexiNed)."""
+    ratio_factor: float = 0.05
+    """Scale-ratio loss weight, as a fraction of the running projection loss (0.01 for DexiNed)."""
+
+    # --- EdgeDoG's uncertainties
+    pixel_uncertainty: bool = True
+    """Weight the L1 per pixel by w(Up), Up = normalised Sobel magnitude of the rendered depth."""
+    weighting: Weighting = "exp"
+    """w(Up): 'one' 1, 'exp_neg' exp(-Up), 'one_minus' 1 - Up, 'up' Up, 'exp' exp(Up)."""
+    primitive_uncertainty: bool = True
+    """Every `fisher_every` epochs keep the `keep_ratio` best primitives by Fisher information."""
+    fisher_every: int = 50
+    keep_ratio: float = 0.9
+    """The pruning ratio p: the fraction of primitives kept at each Fisher pruning."""
+
+    # --- density control (EdgeGaussians, PiDiNet settings)
+    duplicate_epochs: tuple[int, ...] = (40, 50, 60, 70, 80, 90, 100, 110, 120, 130, 140, 150, 160,
+                                         210, 220, 350, 375)
+    duplicate_threshold: float = 0.5
+    """Duplicate primitives whose min-max normalised accumulated |dL/dmean2d| exceeds this."""
+    duplicate_copies: int = 2
+    duplicate_noise: float = 0.05
+    """Standard deviation of the noise added to the copies' means (scene units)."""
+    cull_opacity_epochs: tuple[int, ...] = (125, 310)
+    cull_opacity_below: float = 0.05
+    cull_projection_epochs: tuple[int, ...] = (145, 175, 190)
+    cull_projection_below: float = 0.1
+    """Cull primitives whose centre lands on edge pixels in fewer than this share of the views
+    that see it."""
+    opacity_logit_cap: float = 0.08
+    """After each cull the opacity logits are clamped to at most this (EdgeGaussians)."""
+    max_primitives: int = 200_000
+    """Duplication never grows the model beyond this."""
+
+    # --- run
+    seed: int = 0
+    checkpoint_every: int = 50
+    """Epochs between checkpoints (one is always written at the end)."""
+    snapshot_every: int = 25
+    """Steps between the snapshots published to a viewer."""
+
+    def __post_init__(self):
+        if not 0 < self.keep_ratio <= 1:
+            raise ConfigError(f"keep_ratio must be in (0, 1], got {self.keep_ratio}")
+        if self.weighting not in ("one", "exp_neg", "one_minus", "up", "exp"):
+            raise ConfigError(f"weighting must be one, exp_neg, one_minus, up or exp, got {self.weighting!r}")
+        if self.kernel not in ("dog", "gaussian"):
+            raise ConfigError(f"kernel must be dog or gaussian, got {self.kernel!r}")
+        if self.epochs < 1 or self.downscale < 1:
+            raise ConfigError("epochs and downscale must be positive")
+
+
+def _scale_epochs(config: TrainConfig, factor: float) -> dict:
+    """Every epoch-valued setting multiplied by `factor` (a shorter run keeps the same shape)."""
+    def scale(e: int) -> int:
+        return max(1, round(e * factor))
+
+    changes = {}
+    for f in dataclasses.fields(config):
+        value = getattr(config, f.name)
+        if f.name.endswith("_epochs") and isinstance(value, tuple):
+            changes[f.name] = tuple(sorted({scale(e) for e in value}))
+        elif f.name.endswith("_from_epoch") or f.name in ("epochs", "fisher_every", "checkpoint_every"):
+            changes[f.name] = scale(value)
+    return changes
+
+
+def preset(name: str) -> TrainConfig:
+    """'paper': EdgeGaussians' 400 epochs at full resolution. 'fast': the same schedule
+    compressed to 100 epochs at half resolution."""
+    paper = TrainConfig()
+    if name == "paper":
+        return paper
+    if name == "fast":
+        return dataclasses.replace(paper, downscale=2, **_scale_epochs(paper, 0.25))
+    raise ConfigError(f"unknown preset {name!r}; choose paper or fast")
+
+
+def with_overrides(config: TrainConfig, assignments: list[str]) -> TrainConfig:
+    """Apply `key=value` strings; values are parsed by the field's type."""
+    fields = {f.name: f for f in dataclasses.fields(config)}
+    changes = {}
+    for assignment in assignments:
+        key, sep, text = assignment.partition("=")
+        if not sep or key not in fields:
+            raise ConfigError(f"--set {assignment!r}: expected KEY=VALUE with KEY one of {', '.join(fields)}")
+        current = getattr(config, key)
+        try:
+            if isinstance(current, bool):
+                if text.lower() not in ("true", "false", "1", "0", "on", "off"):
+                    raise ValueError(text)
+                value = text.lower() in ("true", "1", "on")
+            elif isinstance(current, tuple):
+                items = [t for t in text.split(",") if t.strip()]
+                kind = type(current[0]) if current else float
+                value = tuple(kind(t) for t in items)
+            elif current is None or isinstance(current, float):
+                value = None if text.lower() == "none" else float(text)
+            elif isinstance(current, int):
+                value = int(text)
+            else:
+                value = text
+        except ValueError:
+            raise ConfigError(f"--set {assignment!r}: cannot read {text!r} as {type(current).__name__}") from None
+        changes[key] = value
+    return dataclasses.replace(config, **changes)
+
+
+def to_dict(config: TrainConfig) -> dict:
+    return dataclasses.asdict(config)
+
+
+def from_dict(values: dict) -> TrainConfig:
+    fields = {f.name: f for f in dataclasses.fields(TrainConfig)}
+    return TrainConfig(**{k: tuple(v) if isinstance(getattr(TrainConfig(), k), tuple) else v
+                          for k, v in values.items() if k in fields})
+
+
+__all__ = ["TrainConfig", "from_dict", "preset", "to_dict", "with_overrides"]

@@ -1,0 +1,80 @@
+"""The loss terms: weighted L1 to the edge map, direction and scale-ratio regularisers, and the
+pixel-level uncertainty from the rendered depth."""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+import torch.nn.functional as F
+from scipy.spatial import cKDTree
+
+from edgedog.train.model import EdgeModel
+
+_SOBEL_X = torch.tensor([[-1.0, 0.0, 1.0], [-2.0, 0.0, 2.0], [-1.0, 0.0, 1.0]])
+_SOBEL = torch.stack([_SOBEL_X, _SOBEL_X.T])[:, None]  # (2, 1, 3, 3)
+
+
+def depth_uncertainty(depth: torch.Tensor) -> torch.Tensor:
+    """Up: the Sobel gradient magnitude of the rendered depth (H, W), min-max normalised to [0, 1]
+    per view and detached (the paper's pixel-level uncertainty: depth discontinuities)."""
+    with torch.no_grad():
+        # Replicate the border: zero padding would make the image frame a depth discontinuity.
+        padded = F.pad(depth[None, None], (1, 1, 1, 1), mode="replicate")
+        grad = F.conv2d(padded, _SOBEL.to(depth.dtype))[0]
+        magnitude = grad.pow(2).sum(0).sqrt()
+        lo, hi = magnitude.min(), magnitude.max()
+        return (magnitude - lo) / (hi - lo) if hi > lo else torch.zeros_like(magnitude)
+
+
+def uncertainty_weight(up: torch.Tensor, weighting: str) -> torch.Tensor:
+    """w(Up) for the weighting functions of the paper's Table 4."""
+    if weighting == "one":
+        return torch.ones_like(up)
+    if weighting == "exp_neg":
+        return torch.exp(-up)
+    if weighting == "one_minus":
+        return 1 - up
+    if weighting == "up":
+        return up
+    return torch.exp(up)
+
+
+def projection_loss(render: torch.Tensor, target: torch.Tensor, weight: torch.Tensor | None,
+                    sample: torch.Tensor | None = None) -> torch.Tensor:
+    """Mean (weighted) L1 between the render and the edge map (both (H, W)), over all pixels, or
+    over the flat pixel indices `sample` when given."""
+    error = (render - target).abs()
+    if weight is not None:
+        error = error * weight
+    return error.mean() if sample is None else error.reshape(-1)[sample].mean()
+
+
+def edge_and_background_sample(edge_mask: torch.Tensor, generator: torch.Generator) -> torch.Tensor:
+    """Flat indices of every edge pixel plus as many random background pixels (EdgeGaussians)."""
+    flat = edge_mask.reshape(-1)
+    edges = torch.nonzero(flat).squeeze(1)
+    background = torch.nonzero(~flat).squeeze(1)
+    pick = torch.randperm(len(background), generator=generator)[: len(edges)]
+    return torch.cat([edges, background[pick]])
+
+
+def nearest_neighbours(model: EdgeModel, k: int) -> torch.Tensor:
+    """(N, k) indices of each primitive's k nearest other primitives (by centre)."""
+    points = model.means.detach().numpy()
+    k = min(k, len(points) - 1)
+    _, index = cKDTree(points).query(points, k=k + 1)
+    return torch.from_numpy(np.asarray(index)[:, 1:].astype(np.int64))
+
+
+def direction_loss(model: EdgeModel, neighbours: torch.Tensor) -> torch.Tensor:
+    """1 - mean over primitives and neighbours of |major axis . unit direction to the neighbour|."""
+    offsets = model.means[neighbours] - model.means[:, None, :]
+    directions = offsets / offsets.norm(dim=-1, keepdim=True).clamp_min(1e-12)
+    alignment = (model.major_axes()[:, None, :] * directions).sum(-1).abs()
+    return 1 - alignment.mean()
+
+
+def ratio_loss(model: EdgeModel) -> torch.Tensor:
+    """Mean ratio of the second largest to the largest scale: pushes primitives to be thin."""
+    scales = torch.sort(torch.exp(model.log_scales), dim=1, descending=True).values
+    return (scales[:, 1] / scales[:, 0]).mean()

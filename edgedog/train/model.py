@@ -1,0 +1,74 @@
+"""The trainable primitives: one tensor per parameter group, grown and pruned by the strategy."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+from edgedog.init.points import InitialPoints
+from edgedog.renderer._torch_ref import quat_to_rotmat
+from edgedog.renderer.primitives import Primitives
+
+GROUPS = ("means", "log_scales", "quats", "opacity_logits", "k_raw")
+
+
+@dataclass
+class EdgeModel:
+    """N primitives' raw parameters (leaf tensors that require gradients).
+
+    Attributes:
+        means: (N, 3); log_scales: (N, 3); quats: (N, 4); opacity_logits: (N,); k_raw: (N, 2).
+    Colours are fixed to one (edge maps are single-channel intensities).
+    """
+
+    means: torch.Tensor
+    log_scales: torch.Tensor
+    quats: torch.Tensor
+    opacity_logits: torch.Tensor
+    k_raw: torch.Tensor
+
+    @classmethod
+    def from_points(cls, points: InitialPoints, opacity: float, k_init: tuple[float, float],
+                    generator: torch.Generator) -> EdgeModel:
+        """Primitives at the initial points: isotropic scales, uniformly random rotations."""
+        n = len(points)
+        quats = torch.randn(n, 4, generator=generator, dtype=torch.float32)  # uniform on SO(3)
+        return cls(
+            means=torch.tensor(points.positions, dtype=torch.float32),
+            log_scales=torch.log(torch.tensor(points.scales, dtype=torch.float32))[:, None].repeat(1, 3),
+            quats=quats / quats.norm(dim=1, keepdim=True),
+            opacity_logits=torch.full((n,), math.log(opacity / (1 - opacity)), dtype=torch.float32),
+            k_raw=torch.tensor(k_init, dtype=torch.float32).repeat(n, 1),
+        ).requires_grad_()
+
+    def requires_grad_(self) -> EdgeModel:
+        for name in GROUPS:
+            getattr(self, name).requires_grad_(True)
+        return self
+
+    def __len__(self) -> int:
+        return self.means.shape[0]
+
+    def tensors(self) -> dict[str, torch.Tensor]:
+        return {name: getattr(self, name) for name in GROUPS}
+
+    def primitives(self) -> Primitives:
+        return Primitives(self.means, self.log_scales, self.quats, self.opacity_logits, self.k_raw,
+                          torch.ones(len(self), 1))
+
+    def replace(self, tensors: dict[str, torch.Tensor]) -> None:
+        """Swap in new leaf tensors (after pruning or duplication)."""
+        for name in GROUPS:
+            setattr(self, name, tensors[name].detach().requires_grad_(True))
+
+    def major_axes(self) -> torch.Tensor:
+        """(N, 3) unit axis of each primitive's largest scale (differentiable in quats, scales)."""
+        R = quat_to_rotmat(self.quats)
+        largest = self.log_scales.argmax(dim=1)
+        return R[torch.arange(len(self)), :, largest]
+
+    def to_numpy(self) -> dict[str, np.ndarray]:
+        return {name: getattr(self, name).detach().numpy().copy() for name in GROUPS}

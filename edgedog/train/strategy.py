@@ -1,0 +1,143 @@
+"""Density control with explicit state (gsplat's Strategy pattern): EdgeGaussians' duplication
+and culling, and EdgeDoG's primitive-level (Fisher) pruning."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import torch
+
+from edgedog.renderer.config import RasterConfig
+from edgedog.renderer.primitives import RasterCamera
+from edgedog.renderer.rasterize import RenderOutput, fisher_information
+from edgedog.train.config import TrainConfig
+from edgedog.train.model import EdgeModel
+from edgedog.train.optim import Optimizers
+
+
+@dataclass
+class StrategyState:
+    """What density control accumulates between its events.
+
+    Attributes:
+        grad_norm: (N,) sum over steps of |dL/dmean2d| (pixels), reset after each change.
+        pruned_positions: (M, 3) centres removed by the last Fisher pruning (for display).
+        fisher: (N,) Fisher scores of the last pruning, of the primitives it kept.
+    """
+
+    grad_norm: torch.Tensor
+    pruned_positions: np.ndarray = field(default_factory=lambda: np.zeros((0, 3), np.float32))
+    fisher: np.ndarray = field(default_factory=lambda: np.zeros(0, np.float32))
+
+
+@dataclass
+class EdgeViews:
+    """The training views as density control needs them: cameras and boolean edge masks (H, W)."""
+
+    cameras: list[RasterCamera]
+    edge_masks: list[torch.Tensor]
+
+
+class DensityStrategy:
+    """Decides, at the end of each epoch, which primitives to duplicate, cull or prune."""
+
+    def __init__(self, config: TrainConfig, raster: RasterConfig):
+        self.config = config
+        self.raster = raster
+
+    def initial_state(self, n: int) -> StrategyState:
+        return StrategyState(grad_norm=torch.zeros(n))
+
+    def after_backward(self, state: StrategyState, out: RenderOutput) -> None:
+        """Accumulate |dL/dmean2d| of the view just rendered."""
+        if out.means2d.grad is not None:
+            state.grad_norm += out.means2d.grad.norm(dim=1)
+
+    def at_epoch_end(self, epoch: int, model: EdgeModel, optimizers: Optimizers, state: StrategyState,
+                     views: EdgeViews, generator: torch.Generator, keep_ratio: float) -> list[dict]:
+        """Apply the events scheduled after `epoch` (0-based); returns a log entry per event."""
+        c, events = self.config, []
+        if epoch in c.duplicate_epochs:
+            events.append(self._duplicate(model, optimizers, state, generator))
+        if epoch in c.cull_projection_epochs:
+            events.append(self._cull(model, optimizers, state, "projection",
+                                     self._edge_hit_share(model, views) < c.cull_projection_below))
+        if epoch in c.cull_opacity_epochs:
+            opacity = torch.sigmoid(model.opacity_logits.detach())
+            events.append(self._cull(model, optimizers, state, "opacity", opacity < c.cull_opacity_below))
+        if c.primitive_uncertainty and (epoch + 1) % c.fisher_every == 0 and epoch + 1 < c.epochs:
+            events.append(self._fisher_prune(model, optimizers, state, views, keep_ratio))
+        for event in events:
+            event["epoch"] = epoch
+        return events
+
+    def _apply(self, model: EdgeModel, optimizers: Optimizers, state: StrategyState, rows: torch.Tensor,
+               copies_from: int | None = None, means_noise: torch.Tensor | None = None) -> None:
+        """Rebuild every tensor from `rows` of the old ones. Rows from position `copies_from` on
+        are new copies: their Adam moments start at zero."""
+        tensors = {name: tensor.detach()[rows] for name, tensor in model.tensors().items()}
+        if means_noise is not None:
+            tensors["means"] = tensors["means"] + means_noise
+        model.replace(tensors)
+        moment_source = rows.clone()
+        if copies_from is not None:
+            moment_source[copies_from:] = -1
+        optimizers.remap(model, moment_source)
+        state.grad_norm = torch.zeros(len(model))
+
+    def _duplicate(self, model, optimizers, state, generator) -> dict:
+        grads = state.grad_norm
+        span = grads.max() - grads.min()
+        normalised = (grads - grads.min()) / span if span > 0 else torch.zeros_like(grads)
+        chosen = torch.nonzero(normalised > self.config.duplicate_threshold).squeeze(1)
+        room = max(0, (self.config.max_primitives - len(model)) // self.config.duplicate_copies)
+        chosen = chosen[:room]
+        before = len(model)
+        copies = chosen.repeat(self.config.duplicate_copies)
+        # Copies keep their source's parameters, start with zero Adam moments, and move by
+        # N(0, noise^2) so that they can spread along the edge.
+        rows = torch.cat([torch.arange(before), copies])
+        noise = torch.zeros(len(rows), 3)
+        noise[before:] = torch.randn(len(copies), 3, generator=generator) * self.config.duplicate_noise
+        self._apply(model, optimizers, state, rows, copies_from=before, means_noise=noise)
+        return {"event": "duplicate", "before": before, "after": len(model)}
+
+    def _cull(self, model, optimizers, state, reason: str, cull: torch.Tensor) -> dict:
+        before = len(model)
+        self._apply(model, optimizers, state, torch.nonzero(~cull).squeeze(1))
+        with torch.no_grad():  # EdgeGaussians resets opacities after a cull by capping the logits
+            model.opacity_logits.clamp_(max=self.config.opacity_logit_cap)
+        return {"event": f"cull_{reason}", "before": before, "after": len(model)}
+
+    def _edge_hit_share(self, model: EdgeModel, views: EdgeViews) -> torch.Tensor:
+        """(N,) share of the views seeing a primitive's centre in which it lands on an edge pixel."""
+        means = model.means.detach().double()
+        seen = torch.zeros(len(model))
+        on_edge = torch.zeros(len(model))
+        for camera, mask in zip(views.cameras, views.edge_masks):
+            cam = means @ camera.w2c[:3, :3].T + camera.w2c[:3, 3]
+            in_front = cam[:, 2] > camera.near
+            uv = (cam[:, :2] / cam[:, 2:].clamp_min(1e-9)) @ camera.K[:2, :2].T + camera.K[:2, 2]
+            px = torch.round(uv).long()
+            inside = in_front & (px[:, 0] >= 0) & (px[:, 0] < camera.width) & (px[:, 1] >= 0) \
+                & (px[:, 1] < camera.height)
+            seen += inside.float()
+            hit = torch.zeros(len(model), dtype=torch.bool)
+            hit[inside] = mask[px[inside, 1], px[inside, 0]]
+            on_edge += hit.float()
+        return on_edge / seen.clamp_min(1)
+
+    def _fisher_prune(self, model, optimizers, state, views: EdgeViews, keep_ratio: float) -> dict:
+        scores = fisher_information(model.primitives(), views.cameras, self.raster)
+        before = len(model)
+        keep_count = max(1, int(round(keep_ratio * before)))
+        order = torch.argsort(scores, descending=True, stable=True)
+        kept = torch.sort(order[:keep_count]).values
+        pruned = torch.ones(before, dtype=torch.bool)
+        pruned[kept] = False
+        state_positions = model.means.detach()[pruned].numpy().copy()
+        self._apply(model, optimizers, state, kept)
+        state.pruned_positions = state_positions
+        state.fisher = scores[kept].numpy()
+        return {"event": "fisher_prune", "before": before, "after": len(model), "keep_ratio": keep_ratio}

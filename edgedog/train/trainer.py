@@ -1,0 +1,281 @@
+"""The training loop, stepwise, with checkpoints, resume, live controls and snapshots.
+
+A viewer calls `step()` from a worker thread (or `run()`), reads `latest_snapshot` (immutable
+copies, never live tensors) and changes `controls`, which apply at the next step boundary.
+"""
+
+from __future__ import annotations
+
+import random
+import resource
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import torch
+from tqdm import tqdm
+
+from edgedog.edges.cache import ensure_edge_maps
+from edgedog.edges.registry import make_detector
+from edgedog.errors import InputError
+from edgedog.files import atomic_write, atomic_write_json
+from edgedog.init import initialize
+from edgedog.renderer.config import RasterConfig
+from edgedog.renderer.primitives import RasterCamera
+from edgedog.renderer.rasterize import rasterize
+from edgedog.scenes import Scene
+from edgedog.train import losses
+from edgedog.train.config import TrainConfig, from_dict, to_dict
+from edgedog.train.model import GROUPS, EdgeModel
+from edgedog.train.optim import Optimizers
+from edgedog.train.strategy import DensityStrategy, EdgeViews, StrategyState
+
+CHECKPOINT = "checkpoint.pt"
+GEOMETRY_GROUPS = ("means", "log_scales", "quats")  # what the orientation losses move
+
+
+@dataclass
+class Controls:
+    """Settings a user may change while training runs; read at step boundaries."""
+
+    keep_ratio: float
+    weighting: str
+    paused: bool = False
+    lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
+
+    def read(self) -> tuple[float, str, bool]:
+        with self.lock:
+            return self.keep_ratio, self.weighting, self.paused
+
+    def update(self, **changes) -> None:
+        with self.lock:
+            for key, value in changes.items():
+                setattr(self, key, value)
+
+
+@dataclass(frozen=True)
+class Snapshot:
+    """An immutable copy of the model for display.
+
+    Attributes:
+        step, epoch: where training was; loss: the last projection loss.
+        means (N, 3), scales (N, 3), quats (N, 4), opacity (N,), k_raw (N, 2): numpy copies.
+        pruned_positions: (M, 3) centres removed by the last Fisher pruning.
+    """
+
+    step: int
+    epoch: int
+    loss: float
+    means: np.ndarray
+    scales: np.ndarray
+    quats: np.ndarray
+    opacity: np.ndarray
+    k_raw: np.ndarray
+    pruned_positions: np.ndarray
+
+
+def _finite_grads(model: EdgeModel) -> int:
+    """Zero non-finite gradient entries (no NaN ever reaches the parameters); returns how many."""
+    bad = 0
+    for tensor in model.tensors().values():
+        if tensor.grad is not None:
+            mask = ~torch.isfinite(tensor.grad)
+            if mask.any():
+                bad += int(mask.sum())
+                tensor.grad[mask] = 0
+    return bad
+
+
+class Trainer:
+    """Trains an EdgeModel on a scene's pseudo-edge maps; writes its run folder `out`."""
+
+    def __init__(self, scene: Scene, config: TrainConfig, out: Path, progress: bool = True):
+        self.scene, self.config, self.out, self.progress = scene, config, Path(out), progress
+        self.raster = RasterConfig(kernel=config.kernel, k_activation=config.k_activation)
+        self.detector = self._edge_maps()
+        self.cameras = [RasterCamera.from_camera(scene.camera(i)) for i in range(len(scene))]
+        self.targets = [torch.from_numpy(scene.load_edge_map(i, self.detector)) for i in range(len(scene))]
+        self.views = EdgeViews(self.cameras, [t >= config.edge_threshold for t in self.targets])
+        self.strategy = DensityStrategy(config, self.raster)
+        self.controls = Controls(config.keep_ratio, config.weighting)
+        self.generator = torch.Generator().manual_seed(config.seed)
+        self.step_index = 0
+        self.history: list[dict] = []
+        self.events: list[dict] = []
+        self.bad_gradients = 0
+        self.seconds = 0.0
+        self._epoch_losses: list[float] = []
+        self._order = torch.zeros(0, dtype=torch.long)
+        self.latest_snapshot: Snapshot | None = None
+        if (self.out / CHECKPOINT).is_file():
+            self._load(self.out / CHECKPOINT)
+        else:
+            self._initialise()
+
+    # --- set-up
+    def _edge_maps(self) -> str:
+        wanted = self.config.detector
+        if wanted in self.scene.detectors:
+            return wanted
+        if wanted == "auto" and self.scene.detectors:
+            return self.scene.detectors[0]
+        return ensure_edge_maps(self.scene, make_detector(wanted), progress=self.progress).detector
+
+    def _initialise(self) -> None:
+        c = self.config
+        torch.manual_seed(c.seed)
+        points = initialize(self.scene, c.init_method, detector=self.detector, seed=c.seed,
+                            uniform_count=c.init_count, uniform_side=c.init_side)
+        self.init_report = {"method": points.method, "points": len(points), **points.report}
+        self.model = EdgeModel.from_points(points, c.init_opacity, c.k_init, self.generator)
+        self.optimizers = Optimizers(self.model, c)
+        self.state = self.strategy.initial_state(len(self.model))
+        self.initial_count = len(self.model)
+
+    # --- training
+    @property
+    def epoch(self) -> int:
+        return self.step_index // len(self.cameras)
+
+    @property
+    def done(self) -> bool:
+        return self.epoch >= self.config.epochs
+
+    def step(self) -> float:
+        """One view: render, loss, backward, Adam; density control at the end of an epoch.
+
+        Returns the projection loss of the step.
+        """
+        c, epoch, position = self.config, self.epoch, self.step_index % len(self.cameras)
+        keep_ratio, weighting, _ = self.controls.read()
+        started = time.perf_counter()
+        if position == 0:
+            self._order = torch.randperm(len(self.cameras), generator=self.generator)
+            self.optimizers.set_epoch(epoch)
+            self._epoch_losses = []
+        view = int(self._order[position])
+        out = rasterize(self.model.primitives(), self.cameras[view], self.raster)
+        weight = None
+        if c.pixel_uncertainty:
+            weight = losses.uncertainty_weight(losses.depth_uncertainty(out.depth.detach()), weighting)
+        sample = None
+        if epoch >= c.sampled_loss_from_epoch and self.step_index % c.sampled_loss_every == 0:
+            sample = losses.edge_and_background_sample(self.views.edge_masks[view], self.generator)
+        loss = losses.projection_loss(out.image[..., 0], self.targets[view], weight, sample)
+        loss.backward()
+        self.bad_gradients += _finite_grads(self.model)
+        self.strategy.after_backward(self.state, out)
+        self.optimizers.step()
+        self.optimizers.zero_grad()
+        self._epoch_losses.append(loss.item())
+        if self.step_index % c.orientation_every == 0:
+            self._orientation_losses(epoch)
+        self.step_index += 1
+        self.seconds += time.perf_counter() - started
+        if position == len(self.cameras) - 1:
+            self._end_epoch(epoch, keep_ratio)
+        if self.step_index % c.snapshot_every == 0 or self.done:
+            self.latest_snapshot = self.snapshot(self._epoch_losses[-1])
+        return self._epoch_losses[-1]
+
+    def _orientation_losses(self, epoch: int) -> None:
+        """EdgeGaussians' direction and scale-ratio terms, each weighted to `factor` times the
+        running projection loss and stepped on the geometry alone."""
+        c = self.config
+        running = float(np.mean(self._epoch_losses))
+        terms = []
+        if epoch >= c.ratio_from_epoch:
+            terms.append((c.ratio_factor, lambda: losses.ratio_loss(self.model)))
+        if epoch >= c.direction_from_epoch and len(self.model) > c.direction_neighbours:
+            neighbours = losses.nearest_neighbours(self.model, c.direction_neighbours)
+            terms.append((c.direction_factor, lambda: losses.direction_loss(self.model, neighbours)))
+        for factor, term in terms:
+            value = term()
+            if value.item() > 0:
+                (factor * running / value.item() * value).backward()
+                self.bad_gradients += _finite_grads(self.model)
+                self.optimizers.step(GEOMETRY_GROUPS)
+                self.optimizers.zero_grad()
+
+    def _end_epoch(self, epoch: int, keep_ratio: float) -> None:
+        before = len(self.model)
+        started = time.perf_counter()
+        events = self.strategy.at_epoch_end(epoch, self.model, self.optimizers, self.state, self.views,
+                                            self.generator, keep_ratio)
+        self.seconds += time.perf_counter() - started
+        self.events += events
+        self.history.append({"epoch": epoch, "loss": float(np.mean(self._epoch_losses)),
+                             "primitives_before_events": before, "primitives": len(self.model),
+                             "seconds": round(self.seconds, 2)})
+        if (epoch + 1) % self.config.checkpoint_every == 0 or epoch + 1 == self.config.epochs:
+            self.save_checkpoint()
+
+    def run(self) -> None:
+        """Train to the end (resuming where a checkpoint left off), then write the outputs."""
+        total = self.config.epochs * len(self.cameras)
+        with tqdm(total=total, initial=self.step_index, unit="step", disable=not self.progress,
+                  desc="train") as bar:
+            while not self.done:
+                if self.controls.read()[2]:
+                    time.sleep(0.05)
+                    continue
+                loss = self.step()
+                bar.update(1)
+                if self.step_index % 25 == 0:
+                    bar.set_postfix(epoch=self.epoch, loss=f"{loss:.4f}", primitives=len(self.model))
+        self.write_outputs()
+
+    # --- snapshots, checkpoints, outputs
+    def snapshot(self, loss: float = float("nan")) -> Snapshot:
+        m = self.model.to_numpy()
+        return Snapshot(self.step_index, self.epoch, loss, m["means"], np.exp(m["log_scales"]), m["quats"],
+                        1 / (1 + np.exp(-m["opacity_logits"])), m["k_raw"], self.state.pruned_positions.copy())
+
+    def save_checkpoint(self) -> Path:
+        """Everything needed to continue exactly: model, Adam moments, strategy, random state."""
+        payload = {
+            "config": to_dict(self.config), "step_index": self.step_index, "model": self.model.to_numpy(),
+            "optimizers": self.optimizers.state_dict(), "grad_norm": self.state.grad_norm,
+            "pruned_positions": self.state.pruned_positions, "fisher": self.state.fisher,
+            "generator": self.generator.get_state(), "torch_rng": torch.get_rng_state(),
+            "numpy_rng": np.random.get_state(), "python_rng": random.getstate(),
+            "history": self.history, "events": self.events, "seconds": self.seconds,
+            "bad_gradients": self.bad_gradients, "init_report": self.init_report,
+            "initial_count": self.initial_count, "detector": self.detector,
+        }
+        return atomic_write(self.out / CHECKPOINT, lambda f: torch.save(payload, f))
+
+    def _load(self, path: Path) -> None:
+        saved = torch.load(path, weights_only=False)
+        if from_dict(saved["config"]) != self.config:
+            raise InputError(path, "the checkpoint was made with another configuration")
+        self.model = EdgeModel(**{name: torch.from_numpy(saved["model"][name]) for name in GROUPS})
+        self.model.requires_grad_()
+        self.optimizers = Optimizers(self.model, self.config)
+        self.optimizers.load_state_dict(saved["optimizers"])
+        self.state = StrategyState(saved["grad_norm"], saved["pruned_positions"], saved["fisher"])
+        self.generator.set_state(saved["generator"])
+        torch.set_rng_state(saved["torch_rng"])
+        np.random.set_state(saved["numpy_rng"])
+        random.setstate(saved["python_rng"])
+        self.step_index = saved["step_index"]
+        self.history, self.events = saved["history"], saved["events"]
+        self.seconds, self.bad_gradients = saved["seconds"], saved["bad_gradients"]
+        self.init_report, self.initial_count = saved["init_report"], saved["initial_count"]
+
+    def write_outputs(self) -> None:
+        """primitives.ply (all parameters), points.ply (centres, for `edgedog eval`), log.json."""
+        from edgedog.train.export import write_points, write_primitives
+
+        write_primitives(self.out / "primitives.ply", self.snapshot())
+        write_points(self.out / "points.ply", self.model.means.detach().numpy())
+        atomic_write_json(self.out / "log.json", {
+            "scene": str(self.scene.root), "detector": self.detector, "config": to_dict(self.config),
+            "init": self.init_report, "initial_primitives": self.initial_count,
+            "final_primitives": len(self.model), "train_seconds": round(self.seconds, 2),
+            "peak_rss_mib": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1),
+            "non_finite_gradients_zeroed": self.bad_gradients, "events": self.events,
+            "history": self.history,
+        })

@@ -1,0 +1,129 @@
+"""The trainer on the built-in box: resume exactness, density control, losses, controls."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+import torch
+
+from edgedog.errors import ConfigError
+from edgedog.scenes import load_scene
+from edgedog.train import losses
+from edgedog.train.config import TrainConfig, preset, with_overrides
+from edgedog.train.model import GROUPS
+from edgedog.train.trainer import Trainer, _finite_grads
+
+
+def small_config(**changes) -> TrainConfig:
+    """A few epochs at 1/4 resolution with every event early, on 12 of the box's views."""
+    base = dataclasses.replace(
+        preset("fast"), downscale=4, epochs=6, init_count=400, duplicate_epochs=(1, 3),
+        cull_projection_epochs=(2,), cull_opacity_epochs=(4,), fisher_every=2, sampled_loss_from_epoch=1,
+        ratio_from_epoch=1, direction_from_epoch=2, checkpoint_every=3, snapshot_every=5,
+        init_side=0.8)
+    return dataclasses.replace(base, **changes)
+
+
+@pytest.fixture
+def box(builtin_scene_dir, tmp_path):
+    scene = load_scene(builtin_scene_dir, downscale=4)
+    scene.views = scene.views[::4]
+    return scene
+
+
+def test_a_killed_run_resumes_exactly(box, tmp_path):
+    config = small_config()
+    whole = Trainer(box, config, tmp_path / "whole", progress=False)
+    whole.run()
+    # The same run, stopped after its first checkpoint (epoch 3), then continued by a new process.
+    part = Trainer(box, config, tmp_path / "part", progress=False)
+    while part.epoch < 3:
+        part.step()
+    resumed = Trainer(box, config, tmp_path / "part", progress=False)
+    assert resumed.step_index == 3 * len(box)
+    resumed.run()
+    for name in GROUPS:
+        torch.testing.assert_close(getattr(resumed.model, name), getattr(whole.model, name), rtol=0, atol=0)
+    assert [e["after"] for e in resumed.events] == [e["after"] for e in whole.events]
+
+
+def test_density_control_events_and_outputs(box, tmp_path):
+    trainer = Trainer(box, small_config(), tmp_path / "run", progress=False)
+    trainer.run()
+    kinds = [e["event"] for e in trainer.events]
+    assert kinds == ["duplicate", "fisher_prune", "cull_projection", "duplicate", "fisher_prune",
+                     "cull_opacity"]
+    for event in trainer.events:
+        if event["event"] == "fisher_prune":
+            assert event["after"] == round(0.9 * event["before"])
+        elif event["event"] == "duplicate":
+            assert event["after"] >= event["before"]
+        else:
+            assert event["after"] <= event["before"]
+    # Adam's moments stay aligned with the parameters through every change.
+    for name, tensor in trainer.model.tensors().items():
+        state = trainer.optimizers.adams[name].state[tensor]
+        assert state["exp_avg"].shape == tensor.shape
+        assert torch.isfinite(tensor).all()
+    for output in ("primitives.ply", "points.ply", "log.json", "checkpoint.pt"):
+        assert (tmp_path / "run" / output).is_file()
+    snap = trainer.latest_snapshot
+    assert snap.means.shape == (len(trainer.model), 3) and snap.step == trainer.step_index
+
+
+def test_the_baseline_switches_off_edgedog(box, tmp_path):
+    config = small_config(kernel="gaussian", pixel_uncertainty=False, primitive_uncertainty=False, epochs=3)
+    trainer = Trainer(box, config, tmp_path / "base", progress=False)
+    k_before = trainer.model.k_raw.detach().clone()
+    trainer.run()
+    assert "fisher_prune" not in [e["event"] for e in trainer.events]
+    assert torch.equal(trainer.model.k_raw.detach()[: len(k_before)].unique(), k_before.unique())
+
+
+def test_controls_apply_at_the_next_step(box, tmp_path):
+    trainer = Trainer(box, small_config(epochs=3), tmp_path / "run", progress=False)
+    trainer.controls.update(keep_ratio=0.5, weighting="one")
+    snapshot = trainer.snapshot()
+    while trainer.epoch < 2:
+        trainer.step()
+    prune = [e for e in trainer.events if e["event"] == "fisher_prune"][0]
+    assert prune["keep_ratio"] == 0.5 and prune["after"] == round(0.5 * prune["before"])
+    # Snapshots are copies: training moved the model, not the snapshot.
+    assert not np.array_equal(snapshot.means[:10], trainer.model.means.detach().numpy()[:10])
+
+
+def test_depth_uncertainty_and_weighting():
+    depth = torch.zeros(20, 20)
+    depth[:, 10:] = 2.0
+    up = losses.depth_uncertainty(depth)
+    assert up.max() == 1 and up[:, :8].max() == 0 and up[:, 12:].max() == 0 and up[:, 9:11].min() == 1
+    assert torch.equal(losses.uncertainty_weight(up, "one"), torch.ones_like(up))
+    assert torch.allclose(losses.uncertainty_weight(up, "exp"), torch.exp(up))
+    assert torch.allclose(losses.uncertainty_weight(up, "one_minus"), 1 - up)
+    assert losses.depth_uncertainty(torch.ones(5, 5)).max() == 0  # flat depth: no uncertainty
+
+
+def test_non_finite_gradients_never_reach_the_parameters(box, tmp_path):
+    trainer = Trainer(box, small_config(epochs=1), tmp_path / "run", progress=False)
+    trainer.model.means.grad = torch.zeros_like(trainer.model.means)
+    trainer.model.means.grad[3] = float("nan")
+    trainer.model.quats.grad = torch.full_like(trainer.model.quats, float("inf"))
+    assert _finite_grads(trainer.model) == 3 + trainer.model.quats.numel()
+    assert torch.isfinite(trainer.model.means.grad).all() and (trainer.model.quats.grad == 0).all()
+
+
+def test_config_overrides():
+    config = with_overrides(TrainConfig(), ["kernel=gaussian", "keep_ratio=0.8", "pixel_uncertainty=off",
+                                            "duplicate_epochs=5,10", "init_side=none"])
+    assert config.kernel == "gaussian" and config.keep_ratio == 0.8 and not config.pixel_uncertainty
+    assert config.duplicate_epochs == (5, 10) and config.init_side is None
+    with pytest.raises(ConfigError, match="expected KEY=VALUE"):
+        with_overrides(TrainConfig(), ["nonsense=1"])
+    with pytest.raises(ConfigError, match="keep_ratio"):
+        with_overrides(TrainConfig(), ["keep_ratio=1.5"])
+    fast = preset("fast")
+    assert fast.epochs == 100 and fast.downscale == 2 and fast.duplicate_epochs[0] == 10
+
+
