@@ -38,7 +38,8 @@ def run(args: argparse.Namespace) -> None:
         config = from_dict(read_json(config_path)["config"])
     else:
         if (args.out / CHECKPOINT).is_file():
-            raise InputError(args.out, "already holds a run; pass --resume to continue it or choose another --out")
+            raise InputError(args.out, "already holds a run; pass --resume to continue it, or choose "
+                                       "another --out")
         config = with_overrides(preset(args.preset), args.overrides)
         atomic_write_json(config_path, {"scene": str(Path(args.scene).resolve()), "preset": args.preset,
                                         "config": to_dict(config)})

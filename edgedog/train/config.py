@@ -169,7 +169,8 @@ def with_overrides(config: TrainConfig, assignments: list[str]) -> TrainConfig:
             else:
                 value = text
         except ValueError:
-            raise ConfigError(f"--set {assignment!r}: cannot read {text!r} as {type(current).__name__}") from None
+            kind = type(current).__name__
+            raise ConfigError(f"--set {assignment!r}: cannot read {text!r} as {kind}") from None
         changes[key] = value
     return dataclasses.replace(config, **changes)
 

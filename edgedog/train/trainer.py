@@ -230,8 +230,9 @@ class Trainer:
     # --- snapshots, checkpoints, outputs
     def snapshot(self, loss: float = float("nan")) -> Snapshot:
         m = self.model.to_numpy()
+        opacity = 1 / (1 + np.exp(-m["opacity_logits"]))
         return Snapshot(self.step_index, self.epoch, loss, m["means"], np.exp(m["log_scales"]), m["quats"],
-                        1 / (1 + np.exp(-m["opacity_logits"])), m["k_raw"], self.state.pruned_positions.copy())
+                        opacity, m["k_raw"], self.state.pruned_positions.copy())
 
     def save_checkpoint(self) -> Path:
         """Everything needed to continue exactly: model, Adam moments, strategy, random state."""
