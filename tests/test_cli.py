@@ -83,7 +83,7 @@ def test_eval_rejects_a_truncated_prediction(builtin_scene_dir, tmp_path):
 
 
 @pytest.mark.parametrize("args", [["--help"], ["info", "--help"], ["edges", "--help"], ["init", "--help"],
-                                  ["sfm", "--help"], ["eval", "--help"],
+                                  ["sfm", "--help"], ["train", "--help"], ["eval", "--help"],
                                   ["bench", "raster", "--help"], ["demo", "--help"]])
 def test_help(args):
     result = edgedog(*args)
@@ -128,3 +128,19 @@ def test_init_reports_the_method_and_writes_points(builtin_scene_dir, tmp_path):
     assert report["method"] == "uniform" and report["points"] == 2500 and report["reason"] == "requested"
     vertex = PlyData.read(str(out))["vertex"]
     assert len(vertex) == 2500 and (vertex["scale"] > 0).all()
+
+
+def test_train_writes_a_run_and_refuses_to_overwrite_it(builtin_scene_dir, tmp_path):
+    run = tmp_path / "run"
+    settings = ["--set", "epochs=2", "--set", "downscale=4", "--set", "init_count=200", "--quiet"]
+    result = edgedog("train", builtin_scene_dir, "--out", run, "--preset", "fast", *settings)
+    assert result.returncode == 0, result.stderr
+    assert "trained" in result.stdout
+    log = json.loads((run / "log.json").read_text())
+    assert log["initial_primitives"] == 200 and len(log["history"]) == 2
+    again = edgedog("train", builtin_scene_dir, "--out", run, *settings)
+    assert again.returncode == 2 and "pass --resume" in again.stderr
+    resumed = edgedog("train", builtin_scene_dir, "--out", run, "--resume", "--quiet")
+    assert resumed.returncode == 0 and '"resumed_at_step": ' in resumed.stdout
+    bad = edgedog("train", builtin_scene_dir, "--out", tmp_path / "other", "--set", "nonsense=1")
+    assert bad.returncode == 2 and bad.stderr.startswith("edgedog: error: --set 'nonsense=1'")
