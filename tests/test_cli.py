@@ -144,3 +144,14 @@ def test_train_writes_a_run_and_refuses_to_overwrite_it(builtin_scene_dir, tmp_p
     assert resumed.returncode == 0 and '"resumed_at_step": ' in resumed.stdout
     bad = edgedog("train", builtin_scene_dir, "--out", tmp_path / "other", "--set", "nonsense=1")
     assert bad.returncode == 2 and bad.stderr.startswith("edgedog: error: --set 'nonsense=1'")
+
+
+def test_written_files_get_the_usual_permissions(tmp_path):
+    import os
+
+    from edgedog.files import atomic_write_json
+
+    path = atomic_write_json(tmp_path / "x.json", {"a": 1})
+    mask = os.umask(0)
+    os.umask(mask)
+    assert path.stat().st_mode & 0o777 == 0o666 & ~mask
