@@ -4,6 +4,7 @@ Atomic writes mean a reader (or a crash) never sees a half-written file."""
 
 from __future__ import annotations
 
+import functools
 import json
 import os
 import tempfile
@@ -36,6 +37,7 @@ def atomic_write(path: str | Path, write: Callable[[BinaryIO], None]) -> Path:
     return path
 
 
+@functools.cache  # read once: setting the umask to read it is not thread-safe
 def _umask() -> int:
     mask = os.umask(0)
     os.umask(mask)
