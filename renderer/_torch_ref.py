@@ -125,16 +125,26 @@ def project(means, scales, quats, support_q, K, w2c, width: int, height: int, ne
     return means2d, conics, torch.where(valid, p[:, 2], torch.zeros_like(z)), extents, valid
 
 
-def tile_lists(means2d, extents, depths, valid, width: int, height: int):
-    """Primitives whose support box reaches each 16x16 tile, front to back (no gradients).
+def support_boxes(means2d, extents, valid, width: int, height: int):
+    """Pixel-centre ranges each primitive's support box covers inside the image.
 
     A primitive covers the pixel centres x in [m - e, m + e] (likewise y).
     Returns:
-        list over tiles (row-major) of (n_i,) int64 primitive indices sorted by depth.
+        lo (N, 2), hi (N, 2): inclusive pixel ranges clipped to the image (as floats);
+        usable (N,) bool: valid, with a non-empty box that reaches at least one pixel.
     """
     lo = torch.clamp(torch.ceil(means2d - extents), min=0)
     hi = torch.minimum(torch.floor(means2d + extents), means2d.new_tensor([width - 1, height - 1]))
-    usable = valid & (extents > 0).all(1) & (lo <= hi).all(1)
+    return lo, hi, valid & (extents > 0).all(1) & (lo <= hi).all(1)
+
+
+def tile_lists(means2d, extents, depths, valid, width: int, height: int):
+    """Primitives whose support box reaches each 16x16 tile, front to back (no gradients).
+
+    Returns:
+        list over tiles (row-major) of (n_i,) int64 primitive indices sorted by depth.
+    """
+    lo, hi, usable = support_boxes(means2d, extents, valid, width, height)
     lo_tile = torch.where(usable[:, None], lo, torch.zeros_like(lo)).long() // TILE_SIZE
     hi_tile = torch.where(usable[:, None], hi, -torch.ones_like(hi)).long() // TILE_SIZE
     tiles_x, tiles_y = -(-width // TILE_SIZE), -(-height // TILE_SIZE)

@@ -45,21 +45,19 @@ def _background(config: RasterConfig, channels: int, dtype: torch.dtype) -> torc
     return bg
 
 
-def _visible(means2d, extents, valid, camera: RasterCamera) -> torch.Tensor:
-    """Primitives whose support box contains at least one pixel centre of the image."""
-    lo = torch.ceil(means2d.detach() - extents)
-    hi = torch.floor(means2d.detach() + extents)
-    inside = (
-        (hi[:, 0] >= 0) & (lo[:, 0] <= camera.width - 1) & (hi[:, 1] >= 0) & (lo[:, 1] <= camera.height - 1)
-    )
-    return valid & (extents > 0).all(1) & inside & (torch.maximum(lo, torch.zeros_like(lo)) <= hi).all(1)
-
-
 def _project_reference(prims: Primitives, act: Activated, camera: RasterCamera, config: RasterConfig):
     """The reference projection in the primitives' dtype."""
     dtype = prims.means.dtype
     return ref.project(prims.means, act.scales, prims.quats, act.support_q, camera.K.to(dtype),
                        camera.w2c.to(dtype), camera.width, camera.height, camera.near, config.eps2d)
+
+
+def _project_and_tile(prims: Primitives, act: Activated, camera: RasterCamera, config: RasterConfig):
+    """The C++ projection and tile lists: means2d, conics, depths, extents, valid, offsets, ids."""
+    means2d, conics, depths, extents, valid = ops.project(
+        prims.means, act.scales, prims.quats, act.support_q, camera, config.eps2d)
+    offsets, ids = ops.tile_lists(means2d, extents, depths, valid, camera.width, camera.height)
+    return means2d, conics, depths, extents, valid, offsets, ids
 
 
 def _render_one(
@@ -68,12 +66,9 @@ def _render_one(
     background = _background(config, prims.colors.shape[1], prims.colors.dtype)
     w, h = camera.width, camera.height
     if config.backend == "cpp":
-        means2d, conics, depths, extents, valid = ops.project(
-            prims.means, act.scales, prims.quats, act.support_q, camera, config.eps2d
-        )
+        means2d, conics, depths, extents, valid, offsets, ids = _project_and_tile(prims, act, camera, config)
         if means2d.requires_grad:
             means2d.retain_grad()
-        offsets, ids = ops.tile_lists(means2d, extents, depths, valid, w, h)
         image, alpha, depth = ops.rasterize(
             means2d,
             conics,
@@ -109,7 +104,8 @@ def _render_one(
             h,
             background,
         )
-    return RenderOutput(image, alpha, depth, means2d, _visible(means2d, extents, valid, camera))
+    visible = ref.support_boxes(means2d.detach(), extents, valid, w, h)[2]
+    return RenderOutput(image, alpha, depth, means2d, visible)
 
 
 def rasterize(
@@ -139,10 +135,8 @@ def fisher_information(
         for camera in cameras:
             w, h = camera.width, camera.height
             if config.backend == "cpp":
-                means2d, conics, depths, extents, valid = ops.project(
-                    primitives.means, act.scales, primitives.quats, act.support_q, camera, config.eps2d
-                )
-                offsets, ids = ops.tile_lists(means2d, extents, depths, valid, w, h)
+                means2d, conics, depths, extents, _, offsets, ids = _project_and_tile(
+                    primitives, act, camera, config)
                 total += ops.fisher(
                     means2d,
                     conics,

@@ -100,6 +100,7 @@ def _with_dtype(prims: Primitives, dtype) -> Primitives:
 def _evaluations(out: RenderOutput, prims: Primitives, camera: RasterCamera, config: RasterConfig) -> int:
     """Primitive-pixel evaluations of a forward pass: pixels inside each support box."""
     from edgedog.renderer import ops
+    from edgedog.renderer._torch_ref import support_boxes
     from edgedog.renderer.primitives import activate
 
     with torch.no_grad():
@@ -107,10 +108,7 @@ def _evaluations(out: RenderOutput, prims: Primitives, camera: RasterCamera, con
         means2d, _, _, extents, valid = ops.project(
             prims.means, act.scales, prims.quats, act.support_q, camera, config.eps2d
         )
-        lo = torch.clamp(torch.ceil(means2d - extents), min=0)
-        hi = torch.minimum(
-            torch.floor(means2d + extents), torch.tensor([camera.width - 1.0, camera.height - 1.0])
-        )
+        lo, hi, _ = support_boxes(means2d, extents, valid, camera.width, camera.height)
         count = torch.clamp(hi - lo + 1, min=0).prod(1)
     return int(count[out.visible].sum())
 

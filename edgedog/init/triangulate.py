@@ -56,10 +56,7 @@ def edge_support(scene: Scene, points: np.ndarray, views: list[int], detector: s
     for index in views:
         camera = scene.camera(index)
         edges = scene.load_edge_map(index, detector)
-        uv, depth = camera.project(points)
-        pixels = np.rint(uv).astype(np.int64)
-        inside = (depth > 0) & (pixels[:, 0] >= 0) & (pixels[:, 0] < camera.width) \
-            & (pixels[:, 1] >= 0) & (pixels[:, 1] < camera.height)
+        pixels, inside = camera.pixels(points)
         hit = np.zeros(len(points), dtype=bool)
         hit[inside] = edges[pixels[inside, 1], pixels[inside, 0]] >= threshold
         counts += hit

@@ -74,6 +74,21 @@ class Camera:
         uv = (cam[:, :2] / safe[:, None]) @ self.K[:2, :2].T + self.K[:2, 2]
         return uv, depth
 
+    def pixels(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Nearest pixel of each world point, and whether it is a pixel of this image.
+
+        Args:
+            points: (N, 3) world coordinates.
+        Returns:
+            pixels: (N, 2) int64 (x, y), meaningful where `inside`;
+            inside: (N,) bool, in front of the camera and within the image.
+        """
+        uv, depth = self.project(points)
+        pixels = np.rint(np.nan_to_num(uv, nan=-1.0, posinf=-1.0, neginf=-1.0)).astype(np.int64)
+        inside = (depth > 0) & (pixels[:, 0] >= 0) & (pixels[:, 0] < self.width) \
+            & (pixels[:, 1] >= 0) & (pixels[:, 1] < self.height)
+        return pixels, inside
+
     def scaled(self, width: int, height: int) -> Camera:
         """The same camera for an image resized to `width` x `height` pixels.
 

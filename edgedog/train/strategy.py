@@ -11,6 +11,7 @@ import torch
 from edgedog.renderer.config import RasterConfig
 from edgedog.renderer.primitives import RasterCamera
 from edgedog.renderer.rasterize import RenderOutput, fisher_information
+from edgedog.scenes.camera import Camera
 from edgedog.train.config import TrainConfig
 from edgedog.train.model import EdgeModel
 from edgedog.train.optim import Optimizers
@@ -33,9 +34,16 @@ class StrategyState:
 
 @dataclass
 class EdgeViews:
-    """The training views as density control needs them: cameras and boolean edge masks (H, W)."""
+    """The training views as density control needs them.
+
+    Attributes:
+        cameras: the rasterizer's cameras (for Fisher information).
+        pinholes: the same cameras as `edgedog.scenes.Camera` (for projecting centres).
+        edge_masks: (H, W) bool edge pixels of each view.
+    """
 
     cameras: list[RasterCamera]
+    pinholes: list[Camera]
     edge_masks: list[torch.Tensor]
 
 
@@ -112,19 +120,14 @@ class DensityStrategy:
 
     def _edge_hit_share(self, model: EdgeModel, views: EdgeViews) -> torch.Tensor:
         """(N,) share of the views seeing a primitive's centre in which it lands on an edge pixel."""
-        means = model.means.detach().double()
+        means = model.means.detach().double().numpy()
         seen = torch.zeros(len(model))
         on_edge = torch.zeros(len(model))
-        for camera, mask in zip(views.cameras, views.edge_masks):
-            cam = means @ camera.w2c[:3, :3].T + camera.w2c[:3, 3]
-            in_front = cam[:, 2] > camera.near
-            uv = (cam[:, :2] / cam[:, 2:].clamp_min(1e-9)) @ camera.K[:2, :2].T + camera.K[:2, 2]
-            px = torch.round(uv).long()
-            inside = in_front & (px[:, 0] >= 0) & (px[:, 0] < camera.width) & (px[:, 1] >= 0) \
-                & (px[:, 1] < camera.height)
-            seen += inside.float()
+        for camera, mask in zip(views.pinholes, views.edge_masks):
+            pixels, inside = camera.pixels(means)
+            seen += torch.from_numpy(inside).float()
             hit = torch.zeros(len(model), dtype=torch.bool)
-            hit[inside] = mask[px[inside, 1], px[inside, 0]]
+            hit[inside] = mask[pixels[inside, 1], pixels[inside, 0]]
             on_edge += hit.float()
         return on_edge / seen.clamp_min(1)
 

@@ -97,7 +97,8 @@ class Trainer:
         self.detector = self._edge_maps()
         self.cameras = [RasterCamera.from_camera(scene.camera(i)) for i in range(len(scene))]
         self.targets = [torch.from_numpy(scene.load_edge_map(i, self.detector)) for i in range(len(scene))]
-        self.views = EdgeViews(self.cameras, [t >= config.edge_threshold for t in self.targets])
+        masks = [target >= config.edge_threshold for target in self.targets]
+        self.views = EdgeViews(self.cameras, scene.cameras, masks)
         self.strategy = DensityStrategy(config, self.raster)
         self.controls = Controls(config.keep_ratio, config.weighting)
         self.generator = torch.Generator().manual_seed(config.seed)
