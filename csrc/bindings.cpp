@@ -188,14 +188,15 @@ std::vector<Tensor> rasterize_backward(Tensor means2d, Tensor conics, Tensor opa
   check_float(g_depth, "grad depth", {height, width});
   Tensor gm = torch::empty_like(means2d), gc = torch::empty_like(conics), go = torch::empty_like(opacity);
   Tensor ga = torch::empty_like(a), gt = torch::empty_like(t), gcol = torch::empty_like(colors);
-  Tensor gd = torch::empty_like(depths);
+  Tensor gd = torch::empty_like(depths), gm_abs = torch::empty_like(means2d);
   edgedog::rasterize_backward(args.splats, args.frame, args.tiles, final_T.data_ptr<float>(),
                               last.data_ptr<int32_t>(),
                               {g_image.data_ptr<float>(), g_alpha.data_ptr<float>(), g_depth.data_ptr<float>()},
-                              {gm.data_ptr<float>(), gc.data_ptr<float>(), go.data_ptr<float>(),
+                              {gm.data_ptr<float>(), gm_abs.data_ptr<float>(), gc.data_ptr<float>(),
+                               go.data_ptr<float>(),
                                ga.data_ptr<float>(), gt.data_ptr<float>(), gcol.data_ptr<float>(),
                                gd.data_ptr<float>()});
-  return {gm, gc, go, ga, gt, gcol, gd};
+  return {gm, gc, go, ga, gt, gcol, gd, gm_abs};
 }
 
 void rasterize_fisher(Tensor means2d, Tensor conics, Tensor opacity, Tensor a, Tensor t, Tensor support,

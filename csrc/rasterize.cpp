@@ -218,7 +218,8 @@ void walk_tile_backwards(const Splats& s, const Frame& f, const TileView& tiles,
   }
 }
 
-enum GradSlot { kMeanX, kMeanY, kConicA, kConicB, kConicC, kOpacity, kA, kT, kDepth, kColors };
+enum GradSlot { kMeanX, kMeanY, kAbsMeanX, kAbsMeanY, kConicA, kConicB, kConicC, kOpacity, kA, kT, kDepth,
+                kColors };
 
 }  // namespace
 
@@ -261,8 +262,12 @@ void rasterize_backward(const Splats& s, const Frame& f, const TileView& tiles,
             gi[kConicA] += g_q * h.dx * h.dx;
             gi[kConicB] += g_q * 2.f * h.dx * h.dy;
             gi[kConicC] += g_q * h.dy * h.dy;
-            gi[kMeanX] += -2.f * g_q * (fp.A * h.dx + fp.B * h.dy);
-            gi[kMeanY] += -2.f * g_q * (fp.B * h.dx + fp.C * h.dy);
+            const float g_mx = -2.f * g_q * (fp.A * h.dx + fp.B * h.dy);
+            const float g_my = -2.f * g_q * (fp.B * h.dx + fp.C * h.dy);
+            gi[kMeanX] += g_mx;
+            gi[kMeanY] += g_my;
+            gi[kAbsMeanX] += std::fabs(g_mx);
+            gi[kAbsMeanY] += std::fabs(g_my);
           });
     }
   }
@@ -272,6 +277,8 @@ void rasterize_backward(const Splats& s, const Frame& f, const TileView& tiles,
     const float* a = acc + i * per;
     grads.means2d[2 * i] = a[kMeanX];
     grads.means2d[2 * i + 1] = a[kMeanY];
+    grads.means2d_abs[2 * i] = a[kAbsMeanX];
+    grads.means2d_abs[2 * i + 1] = a[kAbsMeanY];
     grads.conics[3 * i] = a[kConicA];
     grads.conics[3 * i + 1] = a[kConicB];
     grads.conics[3 * i + 2] = a[kConicC];

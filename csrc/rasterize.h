@@ -43,6 +43,7 @@ struct RasterGradOutputs {  // dL/d(image, alpha, depth)
 
 struct SplatGrads {  // dL/d(inputs), written (not accumulated)
   float* means2d;
+  float* means2d_abs;  // (N, 2) sum over pixels of |per-pixel dL/dmean2d| (gsplat's absgrad)
   float* conics;
   float* opacity;
   float* a;

@@ -56,32 +56,48 @@ def tile_lists(means2d, extents, depths, valid, width: int, height: int):
 class _Rasterize(torch.autograd.Function):
     @staticmethod
     def forward(ctx, means2d, conics, opacity, a, t, colors, depths, support, extents, offsets, ids,
-                width: int, height: int, background):
+                width: int, height: int, background, absgrad_sink):
         args = [_f32(x) for x in (means2d, conics, opacity, a, t, support, extents, colors, depths)]
         args += [offsets, ids, width, height, None if background is None else _f32(background)]
         image, alpha, depth, final_T, last = load_extension().rasterize_forward(*args)
         ctx.args = args
+        ctx.absgrad_sink = absgrad_sink
         ctx.save_for_backward(final_T, last)
         return image, alpha, depth
 
     @staticmethod
     def backward(ctx, g_image, g_alpha, g_depth):
         final_T, last = ctx.saved_tensors
-        gm, gc, go, ga, gt, gcol, gd = load_extension().rasterize_backward(
+        gm, gc, go, ga, gt, gcol, gd, gm_abs = load_extension().rasterize_backward(
             *ctx.args, final_T, last, _f32(g_image), _f32(g_alpha), _f32(g_depth))
+        if ctx.absgrad_sink is not None:
+            ctx.absgrad_sink.add(gm_abs)
         need = ctx.needs_input_grad
         grads = (gm, gc, go, ga, gt, gcol, gd)
-        return tuple(g if need[k] else None for k, g in enumerate(grads)) + (None,) * 7
+        return tuple(g if need[k] else None for k, g in enumerate(grads)) + (None,) * 8
+
+
+class AbsGradSink:
+    """Receives, from each backward pass, the (N, 2) sum over pixels of |per-pixel dL/dmean2d|
+    (gsplat's "absgrad", which densification uses: unlike |dL/dmean2d|, pulls from both sides
+    of an edge add up instead of cancelling)."""
+
+    def __init__(self):
+        self.value: torch.Tensor | None = None
+
+    def add(self, absgrad: torch.Tensor) -> None:
+        self.value = absgrad if self.value is None else self.value + absgrad
 
 
 def rasterize(means2d, conics, opacity, a, t, colors, depths, support, extents, offsets, ids,
-              width: int, height: int, background=None):
+              width: int, height: int, background=None, absgrad_sink: AbsGradSink | None = None):
     """C++ compositing: image (H, W, C), alpha (H, W), depth (H, W).
 
-    Differentiable w.r.t. means2d, conics, opacity, a, t, colors and depths.
+    Differentiable w.r.t. means2d, conics, opacity, a, t, colors and depths; a backward pass
+    also adds the means' absgrad to `absgrad_sink` when given.
     """
     return _Rasterize.apply(means2d, conics, opacity, a, t, colors, depths, support, extents, offsets,
-                            ids, width, height, background)
+                            ids, width, height, background, absgrad_sink)
 
 
 def fisher(means2d, conics, opacity, a, t, colors, depths, support, extents, offsets, ids,

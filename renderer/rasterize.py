@@ -27,6 +27,8 @@ class RenderOutput:
         means2d: (N, 2) projected centres in pixels; its .grad holds dL/dmean2d after
             backward (for densification), when the primitives require gradients.
         visible: (N,) bool, the primitive reaches at least one pixel of this view.
+        absgrad: after backward, `.value` is the (N, 2) sum over pixels of |per-pixel
+            dL/dmean2d| (C++ backend only; None before backward or with the torch backend).
     """
 
     image: torch.Tensor
@@ -34,6 +36,7 @@ class RenderOutput:
     depth: torch.Tensor
     means2d: torch.Tensor
     visible: torch.Tensor
+    absgrad: ops.AbsGradSink
 
 
 def _background(config: RasterConfig, channels: int, dtype: torch.dtype) -> torch.Tensor | None:
@@ -65,6 +68,7 @@ def _render_one(
 ) -> RenderOutput:
     background = _background(config, prims.colors.shape[1], prims.colors.dtype)
     w, h = camera.width, camera.height
+    absgrad = ops.AbsGradSink()
     if config.backend == "cpp":
         means2d, conics, depths, extents, valid, offsets, ids = _project_and_tile(prims, act, camera, config)
         if means2d.requires_grad:
@@ -84,6 +88,7 @@ def _render_one(
             w,
             h,
             background,
+            absgrad,
         )
     else:
         means2d, conics, depths, extents, valid = _project_reference(prims, act, camera, config)
@@ -105,7 +110,7 @@ def _render_one(
             background,
         )
     visible = ref.support_boxes(means2d.detach(), extents, valid, w, h)[2]
-    return RenderOutput(image, alpha, depth, means2d, visible)
+    return RenderOutput(image, alpha, depth, means2d, visible, absgrad)
 
 
 def rasterize(

@@ -3,6 +3,8 @@ with known cameras on real photos (DTU scan 37) and the fallback on feature-poor
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 from conftest import shared_path as shared
@@ -12,6 +14,8 @@ from edgedog.errors import ConfigError, InputError
 from edgedog.init import InitialPoints, initialize, nearest_neighbour_scales, uniform_init
 from edgedog.init.triangulate import edge_support
 from edgedog.scenes import load_scene
+from edgedog.scenes.camera import Camera
+from edgedog.scenes.common import look_at_point
 
 DTU_VIEWS = list(range(10, 20))  # neighbouring views of the second row of the DTU rig
 
@@ -187,3 +191,23 @@ def test_abc_auto_triangulates_on_edges_or_falls_back_with_a_reason(tmp_path):
         assert np.all(support >= 2)
     lo, hi = scene.bounds
     assert np.all((result.positions >= lo - 1e-9) & (result.positions <= hi + 1e-9))
+
+
+def test_uniform_cube_centres_on_the_point_an_orbit_looks_at(box_scene):
+    # EMAP's metadata box is [-1, 1]^3 around an object in [0, 1]^3: centring the cube on it
+    # would start most primitives off the object.
+    loose = dataclasses.replace(box_scene, bounds=np.array([[-1.0] * 3, [1.0] * 3]))
+    np.testing.assert_allclose(look_at_point(loose.cameras), [0.5, 0.5, 0.5], atol=1e-6)
+    result = initialize(loose, "uniform", uniform_count=2000, uniform_side=1.1, seed=3)
+    np.testing.assert_allclose(result.positions.mean(0), [0.5, 0.5, 0.5], atol=0.03)
+    assert np.all(np.abs(result.positions - 0.5) <= 0.55)
+
+
+def test_forward_facing_views_have_no_look_at_point():
+    K = np.array([[500.0, 0, 320], [0, 500.0, 240], [0, 0, 1]])
+    cameras = []
+    for x in np.linspace(-1, 1, 5):  # a sideways sweep with parallel optical axes
+        w2c = np.eye(4)
+        w2c[0, 3] = -x
+        cameras.append(Camera(K, w2c, 640, 480))
+    assert look_at_point(cameras) is None

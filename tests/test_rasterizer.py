@@ -137,6 +137,27 @@ def test_render_and_gradients_match_reference(camera, kernel, activation, backgr
         assert_close_scaled(g[name], expected, name=f"grad {name}")
 
 
+@pytest.mark.parametrize("kernel", ["dog", "gaussian"])
+def test_absgrad_is_the_sum_of_per_pixel_absolute_mean_gradients(kernel):
+    """absgrad_i = sum over pixels p of |d<out_p, cot_p>/dmean2d_i|, from the reference by one
+    autograd pass per pixel; it bounds |dL/dmean2d| and exceeds it where pulls cancel."""
+    camera = make_camera(width=16, height=12, focal=48.0)
+    config = RasterConfig(kernel=kernel)
+    prims = random_primitives(60, 1, seed=5)
+    g_image, g_alpha, g_depth = cotangents(camera.height, camera.width, 1, seed=8)
+    out_ref = rasterize(leaf_copy(prims, F64), camera, torch_config(config))
+    per_pixel = ((out_ref.image * g_image).sum(-1) + out_ref.alpha * g_alpha + out_ref.depth * g_depth).reshape(-1)
+    expected = torch.zeros(len(prims), 2, dtype=F64)
+    for value in per_pixel:
+        (grad,) = torch.autograd.grad(value, out_ref.means2d, retain_graph=True)
+        expected += grad.abs()
+    out, grads = render_with_grads(prims, camera, config, (g_image, g_alpha, g_depth), torch.float32)
+    assert expected.abs().max() > 0 and out_ref.alpha.max() > 0.5
+    assert_close_scaled(out.absgrad.value, expected, name="absgrad")
+    assert torch.all(out.absgrad.value >= grads["means2d"].abs() - 1e-6)
+    assert (out.absgrad.value > 2 * grads["means2d"].abs() + 1e-3).any()
+
+
 def test_tolerances_detect_perturbations(camera):
     """The tolerances above are tight enough to see a 1% error or the other kernel's output."""
     config = config_of("dog", "sigmoid", True, 3)

@@ -16,6 +16,7 @@ from edgedog.errors import ConfigError, InputError
 from edgedog.init.points import InitialPoints, nearest_neighbour_scales
 from edgedog.init.triangulate import keep_on_edges, triangulate_known_poses
 from edgedog.init.uniform import uniform_init
+from edgedog.scenes.common import look_at_point
 from edgedog.scenes.scene import Scene
 
 INIT_METHODS = ("auto", "triangulate", "sfm-points", "uniform")
@@ -23,16 +24,18 @@ INIT_METHODS = ("auto", "triangulate", "sfm-points", "uniform")
 
 def uniform_for_scene(scene: Scene, count: int = 2500, side: float | None = None,
                       seed: int = 0) -> InitialPoints:
-    """EdgeGaussians' uniform cube centred on the scene's bounds.
+    """EdgeGaussians' uniform cube, centred on the point an object-centric capture looks at, else
+    on the scene's bounds (metadata boxes such as EMAP's [-1, 1]^3 are often loose and off-centre).
 
     Args:
         side: cube edge; default the bounds' largest extent (the cube then covers the bounds).
     """
     lo, hi = np.asarray(scene.bounds, dtype=np.float64)
     side = float(np.max(hi - lo)) if side is None else float(side)
+    center = look_at_point(scene.cameras)
     # EdgeGaussians' scales (0.004 to 0.005) are for a 1.1-wide cube: keep their ratio to it.
     scale_range = (0.004 * side / 1.1, 0.005 * side / 1.1)
-    return uniform_init((lo + hi) / 2, side=side, count=count, scale_range=scale_range, seed=seed)
+    return uniform_init((lo + hi) / 2 if center is None else center, side=side, count=count, scale_range=scale_range, seed=seed)
 
 
 def sfm_points_on_edges(scene: Scene, detector: str | None = None, min_edge_views: int = 2,

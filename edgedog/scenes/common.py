@@ -75,19 +75,36 @@ def edge_maps_for(stem: str, folders: dict[str, Path]) -> dict[str, Path]:
     return {name: path for name, path in found.items() if path is not None}
 
 
-def bounds_from_cameras(cameras: list[Camera]) -> np.ndarray:
-    """(2, 3) box around the region every camera sees, for object-centric captures.
-
-    The centre is the point nearest (least squares) to all optical axes; the half-size is the
-    radius of the largest sphere around it that fits inside every view's field of view.
-    """
+def nearest_to_axes(cameras: list[Camera]) -> np.ndarray:
+    """(3,) the point nearest (least squares) to all cameras' optical axes."""
     A = np.zeros((3, 3))
     b = np.zeros(3)
     for cam in cameras:
         P = np.eye(3) - np.outer(cam.forward, cam.forward)  # projects onto the axis' normal
         A += P
         b += P @ cam.center
-    center = np.linalg.lstsq(A, b, rcond=None)[0]
+    return np.linalg.lstsq(A, b, rcond=None)[0]
+
+
+def look_at_point(cameras: list[Camera]) -> np.ndarray | None:
+    """(3,) the point an object-centric capture looks at, or None when the views do not share
+    one: it must lie in front of every camera, within a quarter of its distance from every axis."""
+    point = nearest_to_axes(cameras)
+    for cam in cameras:
+        offset = point - cam.center
+        depth = float(np.dot(offset, cam.forward))
+        if depth <= 0 or np.linalg.norm(offset - depth * cam.forward) > 0.25 * depth:
+            return None
+    return point
+
+
+def bounds_from_cameras(cameras: list[Camera]) -> np.ndarray:
+    """(2, 3) box around the region every camera sees, for object-centric captures.
+
+    The centre is the point nearest (least squares) to all optical axes; the half-size is the
+    radius of the largest sphere around it that fits inside every view's field of view.
+    """
+    center = nearest_to_axes(cameras)
     radii = []
     for cam in cameras:
         distance = float(np.dot(center - cam.center, cam.forward))

@@ -66,9 +66,10 @@ class TrainConfig:
     """The direction and scale-ratio losses are applied every this many steps."""
     direction_neighbours: int = 5
     direction_factor: float = 0.1
-    """Direction loss weight, as a fraction of the running projection loss (0.01 for DexiNed)."""
+    """Direction loss weight: the term is scaled to this fraction of the running sum of the epoch's
+    projection losses, as EdgeGaussians does (0.01 for DexiNed maps)."""
     ratio_factor: float = 0.05
-    """Scale-ratio loss weight, as a fraction of the running projection loss (0.01 for DexiNed)."""
+    """Scale-ratio loss weight, scaled like `direction_factor` (0.01 for DexiNed maps)."""
 
     # --- EdgeDoG's uncertainties
     pixel_uncertainty: bool = True
@@ -85,7 +86,8 @@ class TrainConfig:
     duplicate_epochs: tuple[int, ...] = (40, 50, 60, 70, 80, 90, 100, 110, 120, 130, 140, 150, 160,
                                          210, 220, 350, 375)
     duplicate_threshold: float = 0.5
-    """Duplicate primitives whose min-max normalised accumulated |dL/dmean2d| exceeds this."""
+    """Duplicate primitives whose min-max normalised accumulated absgrad norm (the per-pixel
+    |dL/dmean2d| summed over pixels and steps, as gsplat's absgrad) exceeds this."""
     duplicate_copies: int = 2
     duplicate_noise: float = 0.05
     """Standard deviation of the noise added to the copies' means (scene units)."""

@@ -22,12 +22,13 @@ class StrategyState:
     """What density control accumulates between its events.
 
     Attributes:
-        grad_norm: (N,) sum over steps of |dL/dmean2d| (pixels), reset after each change.
+        absgrad: (N,) sum over steps of the norm of the means' absgrad (the per-pixel absolute
+            dL/dmean2d summed over pixels, as gsplat's absgrad), reset after each change.
         pruned_positions: (M, 3) centres removed by the last Fisher pruning (for display).
         fisher: (N,) Fisher scores of the last pruning, of the primitives it kept.
     """
 
-    grad_norm: torch.Tensor
+    absgrad: torch.Tensor
     pruned_positions: np.ndarray = field(default_factory=lambda: np.zeros((0, 3), np.float32))
     fisher: np.ndarray = field(default_factory=lambda: np.zeros(0, np.float32))
 
@@ -55,12 +56,13 @@ class DensityStrategy:
         self.raster = raster
 
     def initial_state(self, n: int) -> StrategyState:
-        return StrategyState(grad_norm=torch.zeros(n))
+        return StrategyState(absgrad=torch.zeros(n))
 
     def after_backward(self, state: StrategyState, out: RenderOutput) -> None:
-        """Accumulate |dL/dmean2d| of the view just rendered."""
-        if out.means2d.grad is not None:
-            state.grad_norm += out.means2d.grad.norm(dim=1)
+        """Accumulate the absgrad norm of the view just rendered (EdgeGaussians' duplication signal)."""
+        if out.absgrad.value is None:
+            raise RuntimeError("density control needs the C++ rasterizer's absgrad (backend='cpp')")
+        state.absgrad += out.absgrad.value.norm(dim=1)
 
     def at_epoch_end(self, epoch: int, model: EdgeModel, optimizers: Optimizers, state: StrategyState,
                      views: EdgeViews, generator: torch.Generator, keep_ratio: float) -> list[dict]:
@@ -92,10 +94,10 @@ class DensityStrategy:
         if copies_from is not None:
             moment_source[copies_from:] = -1
         optimizers.remap(model, moment_source)
-        state.grad_norm = torch.zeros(len(model))
+        state.absgrad = torch.zeros(len(model))
 
     def _duplicate(self, model, optimizers, state, generator) -> dict:
-        grads = state.grad_norm
+        grads = state.absgrad
         span = grads.max() - grads.min()
         normalised = (grads - grads.min()) / span if span > 0 else torch.zeros_like(grads)
         chosen = torch.nonzero(normalised > self.config.duplicate_threshold).squeeze(1)

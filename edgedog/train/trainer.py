@@ -183,9 +183,10 @@ class Trainer:
 
     def _orientation_losses(self, epoch: int) -> None:
         """EdgeGaussians' direction and scale-ratio terms, each weighted to `factor` times the
-        running projection loss and stepped on the geometry alone."""
+        running sum of the epoch's projection losses and stepped on the geometry alone."""
         c = self.config
-        running = float(np.mean(self._epoch_losses))
+        # EdgeGaussians' balance: the sum of this epoch's projection losses so far, times the factor.
+        running = float(np.sum(self._epoch_losses))
         terms = []
         if epoch >= c.ratio_from_epoch:
             terms.append((c.ratio_factor, lambda: losses.ratio_loss(self.model)))
@@ -239,7 +240,7 @@ class Trainer:
         """Everything needed to continue exactly: model, Adam moments, strategy, random state."""
         payload = {
             "config": to_dict(self.config), "step_index": self.step_index, "model": self.model.to_numpy(),
-            "optimizers": self.optimizers.state_dict(), "grad_norm": self.state.grad_norm,
+            "optimizers": self.optimizers.state_dict(), "absgrad": self.state.absgrad,
             "pruned_positions": self.state.pruned_positions, "fisher": self.state.fisher,
             "generator": self.generator.get_state(), "torch_rng": torch.get_rng_state(),
             "numpy_rng": np.random.get_state(), "python_rng": random.getstate(),
@@ -257,7 +258,7 @@ class Trainer:
         self.model.requires_grad_()
         self.optimizers = Optimizers(self.model, self.config)
         self.optimizers.load_state_dict(saved["optimizers"])
-        self.state = StrategyState(saved["grad_norm"], saved["pruned_positions"], saved["fisher"])
+        self.state = StrategyState(saved["absgrad"], saved["pruned_positions"], saved["fisher"])
         self.generator.set_state(saved["generator"])
         torch.set_rng_state(saved["torch_rng"])
         np.random.set_state(saved["numpy_rng"])
