@@ -146,7 +146,8 @@ def test_absgrad_is_the_sum_of_per_pixel_absolute_mean_gradients(kernel):
     prims = random_primitives(60, 1, seed=5)
     g_image, g_alpha, g_depth = cotangents(camera.height, camera.width, 1, seed=8)
     out_ref = rasterize(leaf_copy(prims, F64), camera, torch_config(config))
-    per_pixel = ((out_ref.image * g_image).sum(-1) + out_ref.alpha * g_alpha + out_ref.depth * g_depth).reshape(-1)
+    per_pixel = (out_ref.image * g_image).sum(-1) + out_ref.alpha * g_alpha + out_ref.depth * g_depth
+    per_pixel = per_pixel.reshape(-1)
     expected = torch.zeros(len(prims), 2, dtype=F64)
     for value in per_pixel:
         (grad,) = torch.autograd.grad(value, out_ref.means2d, retain_graph=True)

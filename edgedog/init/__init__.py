@@ -33,9 +33,10 @@ def uniform_for_scene(scene: Scene, count: int = 2500, side: float | None = None
     lo, hi = np.asarray(scene.bounds, dtype=np.float64)
     side = float(np.max(hi - lo)) if side is None else float(side)
     center = look_at_point(scene.cameras)
+    center = (lo + hi) / 2 if center is None else center
     # EdgeGaussians' scales (0.004 to 0.005) are for a 1.1-wide cube: keep their ratio to it.
     scale_range = (0.004 * side / 1.1, 0.005 * side / 1.1)
-    return uniform_init((lo + hi) / 2 if center is None else center, side=side, count=count, scale_range=scale_range, seed=seed)
+    return uniform_init(center, side=side, count=count, scale_range=scale_range, seed=seed)
 
 
 def sfm_points_on_edges(scene: Scene, detector: str | None = None, min_edge_views: int = 2,
