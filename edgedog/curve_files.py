@@ -1,4 +1,4 @@
-"""Reading predicted 3D edges from the files that users and other tools write.
+"""Reading and writing 3D edges in the files that users and other tools use.
 
 Supported formats (chosen by suffix):
 
@@ -8,7 +8,9 @@ Supported formats (chosen by suffix):
   vertices is a point-cloud prediction.
 * ``.obj``: ``v`` and ``l`` records (polylines); an OBJ without ``l`` records is a point cloud.
 
-Every malformed or missing file raises :class:`~edgedog.errors.InputError`.
+Every malformed or missing file raises :class:`~edgedog.errors.InputError`. The writers
+(:func:`write_edges`) produce the same formats atomically; in OBJ and PLY every curve gets its
+own vertices, so reading the file back gives one polyline per curve.
 """
 
 from __future__ import annotations
@@ -17,10 +19,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from plyfile import PlyData
+from plyfile import PlyData, PlyElement
 
+from edgedog.curves.bezier import bezier_points
 from edgedog.errors import InputError
-from edgedog.files import read_json
+from edgedog.files import atomic_write, atomic_write_bytes, atomic_write_json, read_json
 from edgedog.metrics import SAMPLE_SPACING, sample_cubic_bezier, sample_line, sample_polyline
 
 
@@ -145,7 +148,7 @@ def _read_ply(path: Path) -> EdgeCurves:
         raise InputError(path, "the 'edge' element needs vertex1 and vertex2 properties") from None
     if edges.size and (edges.min() < 0 or edges.max() >= len(xyz)):
         raise InputError(path, f"edge vertex index out of range (the file has {len(xyz)} vertices)")
-    return EdgeCurves(polylines=[xyz[c] for c in _chain_edges(edges, len(xyz))])
+    return EdgeCurves(polylines=[xyz[c] for c in chain_edges(edges, len(xyz))])
 
 
 def _read_obj(path: Path) -> EdgeCurves:
@@ -177,11 +180,99 @@ def _read_obj(path: Path) -> EdgeCurves:
     if not edges:
         return EdgeCurves(points=xyz)
     # Chained like PLY edges, so polylines exported as many 2-vertex `l` records are not lost.
-    chains = _chain_edges(np.asarray(edges, dtype=np.int64), len(xyz))
+    chains = chain_edges(np.asarray(edges, dtype=np.int64), len(xyz))
     return EdgeCurves(polylines=[xyz[c] for c in chains])
 
 
-def _chain_edges(edges: np.ndarray, num_vertices: int) -> list[np.ndarray]:
+_BEZIER_MIN_SEGMENTS = 16
+"""Fewest segments a Bézier is written with to OBJ and PLY (enough for a half circle)."""
+
+
+def curve_polylines(curves: EdgeCurves, spacing: float = SAMPLE_SPACING) -> list[np.ndarray]:
+    """Every curve as a vertex chain (M_i, 3), in the order lines, Béziers, polylines.
+
+    Lines are their two ends; Béziers are sampled uniformly in t with at least
+    `_BEZIER_MIN_SEGMENTS` segments and segments no longer than about `spacing`.
+    """
+    chains = list(curves.lines)
+    for ctrl in curves.beziers:
+        polygon = float(np.sum(np.linalg.norm(np.diff(ctrl, axis=0), axis=1)))  # >= the arc length
+        segments = max(_BEZIER_MIN_SEGMENTS, int(np.ceil(polygon / spacing)))
+        chains.append(bezier_points(ctrl, np.linspace(0.0, 1.0, segments + 1)))
+    return chains + list(curves.polylines)
+
+
+def write_edges(path: str | Path, curves: EdgeCurves) -> Path:
+    """Write curves to a .json (EMAP), .ply or .obj file, atomically; the suffix picks the format."""
+    path = Path(path)
+    writers = {".json": write_json, ".ply": write_ply, ".obj": write_obj}
+    writer = writers.get(path.suffix.lower())
+    if writer is None:
+        raise InputError(path, f"unsupported edge file type {path.suffix!r} (use .json, .ply or .obj)")
+    return writer(path, curves)
+
+
+def write_json(path: str | Path, curves: EdgeCurves) -> Path:
+    """EMAP's parametric_edges.json: `curves_ctl_pts` (B, 4, 3) nested, `lines_end_pts` (L, 6).
+
+    The format has no polylines or free points; curves holding any raise ValueError.
+    """
+    if curves.polylines or len(curves.points):
+        raise ValueError("EMAP's JSON holds only lines and cubic Béziers")
+    return atomic_write_json(path, {"curves_ctl_pts": curves.beziers.tolist(),
+                                    "lines_end_pts": curves.lines.reshape(-1, 6).tolist()})
+
+
+def _curves_or_points(curves: EdgeCurves) -> list[np.ndarray]:
+    """The vertex chains to write, or [] for a point cloud; both at once cannot be read back."""
+    chains = curve_polylines(curves)
+    if chains and len(curves.points):
+        raise ValueError("a file holds either curves or free points, not both")
+    return chains
+
+
+def write_obj(path: str | Path, curves: EdgeCurves) -> Path:
+    """Wavefront OBJ: one `o` group per curve with its `v` records and one `l` polyline; a point
+    cloud (free points only) is `v` records alone."""
+    out, first = [], 1
+    for k, chain in enumerate(_curves_or_points(curves)):
+        out.append(f"o curve_{k}\n")
+        out += [f"v {x:.17g} {y:.17g} {z:.17g}\n" for x, y, z in chain]
+        out.append("l " + " ".join(str(first + i) for i in range(len(chain))) + "\n")
+        first += len(chain)
+    if first == 1:
+        out += [f"v {x:.17g} {y:.17g} {z:.17g}\n" for x, y, z in curves.points]
+    return atomic_write_bytes(path, "".join(out).encode("utf-8"))
+
+
+def write_ply(path: str | Path, curves: EdgeCurves) -> Path:
+    """Binary PLY: float64 vertices and an `edge` element (vertex1, vertex2) joining consecutive
+    vertices of each curve; a point cloud (free points only) has no `edge` element."""
+    chains = _curves_or_points(curves)
+    xyz = np.concatenate(chains) if chains else curves.points
+    vertex = np.empty(len(xyz), dtype=[("x", "f8"), ("y", "f8"), ("z", "f8")])
+    vertex["x"], vertex["y"], vertex["z"] = xyz.T
+    elements = [PlyElement.describe(vertex, "vertex")]
+    if chains:
+        starts = np.cumsum([0] + [len(c) for c in chains[:-1]])
+        pairs = np.concatenate([s + np.stack([np.arange(len(c) - 1), np.arange(1, len(c))], axis=1)
+                                for s, c in zip(starts, chains)])
+        edge = np.empty(len(pairs), dtype=[("vertex1", "i4"), ("vertex2", "i4")])
+        edge["vertex1"], edge["vertex2"] = pairs.T
+        elements.append(PlyElement.describe(edge, "edge"))
+    return atomic_write(path, PlyData(elements).write)
+
+
+def write_point_columns(path: str | Path, columns: dict[str, np.ndarray]) -> Path:
+    """A vertex-only binary PLY with one float32 property per column (N,) (x, y, z first)."""
+    n = len(next(iter(columns.values())))
+    rows = np.empty(n, dtype=[(name, "f4") for name in columns])
+    for name, values in columns.items():
+        rows[name] = values
+    return atomic_write(path, PlyData([PlyElement.describe(rows, "vertex")]).write)
+
+
+def chain_edges(edges: np.ndarray, num_vertices: int) -> list[np.ndarray]:
     """Assemble edges (E, 2) of vertex indices into maximal chains (vertex index arrays).
 
     Chains run through vertices of degree 2 and stop at endpoints and junctions; a closed loop

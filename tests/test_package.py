@@ -57,3 +57,14 @@ def test_missing_extension_gives_one_line_on_how_to_build(tmp_path):
     message = result.stdout.strip()
     assert "\n" not in message
     assert "not built" in message and "make build" in message
+
+
+def test_every_package_folder_is_listed_for_the_wheel():
+    import tomllib
+
+    setuptools = tomllib.loads((REPO / "pyproject.toml").read_text())["tool"]["setuptools"]
+    listed = set(setuptools["packages"])
+    for name, folder in setuptools["package-dir"].items():
+        for init in (REPO / folder).rglob("__init__.py"):
+            parts = init.parent.relative_to(REPO / folder).parts
+            assert ".".join((name, *parts)) in listed, f"{init.parent} is not in pyproject's packages"

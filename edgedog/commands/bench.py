@@ -1,4 +1,4 @@
-"""`edgedog bench ...`: measured speed (and later accuracy); results go to docs/BENCHMARKS.md."""
+"""`edgedog bench ...`: measured speed and accuracy; results go to docs/BENCHMARKS.md."""
 
 from __future__ import annotations
 
@@ -32,6 +32,20 @@ def add_parser(subparsers) -> None:
                        help="PiDiNet weights (default $EDGEDOG_PIDINET)")
     edges.add_argument("--json", type=Path, default=None, help="also write the result here")
     edges.set_defaults(run=run_edges)
+    ablation = kinds.add_parser(
+        "ablation", help="EdgeDoG's components and weighting functions (the paper's Tables 3 and 4)",
+        description="Train one run per row (baseline to full model; each weighting w(Up)), extract "
+                    "and score its curves, and write OUT/ablation.json and OUT/ablation.md. Finished "
+                    "runs in OUT are reused, unfinished ones resumed.")
+    ablation.add_argument("scene", type=Path, help="scene folder with ground truth")
+    ablation.add_argument("--out", type=Path, required=True, help="folder for the runs and the tables")
+    ablation.add_argument("--preset", choices=("paper", "fast"), default="paper")
+    ablation.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                          help="override a training setting for every row (repeatable)")
+    ablation.add_argument("--tables", default="components,weighting",
+                          help="comma-separated: components (Table 3), weighting (Table 4)")
+    ablation.add_argument("--quiet", action="store_true", help="no progress bars")
+    ablation.set_defaults(run=run_ablation)
 
 
 def _report(result: dict, path: Path | None) -> None:
@@ -48,6 +62,20 @@ def run_raster(args: argparse.Namespace) -> None:
                                    args.seed))
     _report(result, args.json)
     print(summary(result))
+
+
+def run_ablation(args: argparse.Namespace) -> None:
+    from edgedog.bench.ablation import TABLES, markdown, run_ablation
+    from edgedog.errors import ConfigError
+    from edgedog.train.config import preset, with_overrides
+
+    tables = tuple(t.strip() for t in args.tables.split(",") if t.strip())
+    if not tables or any(t not in TABLES for t in tables):
+        raise ConfigError(f"--tables must list some of {', '.join(TABLES)}, got {args.tables!r}")
+    base = with_overrides(preset(args.preset), args.overrides)
+    results = run_ablation(args.scene, args.out, base, tables, progress=not args.quiet)
+    print(markdown(results))
+    print(f"wrote {args.out / 'ablation.json'} and {args.out / 'ablation.md'}")
 
 
 def run_edges(args: argparse.Namespace) -> None:

@@ -12,8 +12,10 @@ from edgedog.errors import InputError
 def add_parser(subparsers) -> None:
     parser = subparsers.add_parser(
         "train", help="train EdgeDoG primitives on a scene's pseudo-edge maps",
-        description="Train (or, with --resume, continue) a run. The run folder gets config.json, "
-                    "checkpoint.pt, primitives.ply, points.ply and log.json.")
+        description="Train (or, with --resume, continue) a run, then extract its curves. The run "
+                    "folder gets config.json, checkpoint.pt, primitives.ply, points.ply, log.json, "
+                    "and from the extraction curves.json/.obj/.ply, edge_points.ply and "
+                    "extract.json (with scores when the scene has ground truth).")
     parser.add_argument("scene", help="scene folder")
     parser.add_argument("--out", type=Path, required=True, help="run folder")
     parser.add_argument("--preset", choices=("paper", "fast"), default="paper",
@@ -26,6 +28,8 @@ def add_parser(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> None:
+    from edgedog.commands.extract import print_report
+    from edgedog.curves.report import extract_with_report
     from edgedog.files import atomic_write_json, read_json
     from edgedog.scenes import load_scene
     from edgedog.train.config import from_dict, preset, to_dict, with_overrides
@@ -50,4 +54,7 @@ def run(args: argparse.Namespace) -> None:
     trainer.run()
     log = read_json(args.out / "log.json")
     print(f"trained {log['final_primitives']} primitives (from {log['initial_primitives']}) in "
-          f"{log['train_seconds']} s; outputs in {args.out}")
+          f"{log['train_seconds']} s")
+    _, report = extract_with_report(args.out, scene, trainer.detector)
+    print_report(report)
+    print(f"outputs in {args.out}")

@@ -1,0 +1,152 @@
+"""`edgedog bench ablation`: the paper's Table 3 (EdgeDoG's components, baseline to full) and
+Table 4 (pixel-uncertainty weighting functions), each row a training run whose extracted curves
+are scored against the ground truth.
+
+Rows whose configurations train identically (weighting 1 with the pixel-level term on is the
+same loss as with it off) share one run, so a table never reports two numbers for one model.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from pathlib import Path
+
+from edgedog.errors import InputError
+from edgedog.files import atomic_write_bytes, atomic_write_json, read_json
+from edgedog.train.config import TrainConfig, from_dict, to_dict
+
+COMPONENTS = "components"
+WEIGHTING = "weighting"
+TABLES = (COMPONENTS, WEIGHTING)
+
+
+@dataclass(frozen=True)
+class AblationRow:
+    """One row: which table, its label, and the settings it changes from the base config."""
+
+    table: str
+    label: str
+    changes: dict
+
+
+def component_rows() -> list[AblationRow]:
+    """Table 3: the baseline, each of the DoG kernel and the two uncertainties alone, each pair,
+    and the full model."""
+    combos = [(0, 0, 0), (1, 0, 0), (0, 1, 0), (0, 0, 1), (1, 1, 0), (1, 0, 1), (0, 1, 1), (1, 1, 1)]
+    rows = []
+    for dog, pixel, primitive in combos:
+        parts = [name for name, on in (("DoG", dog), ("pixel U", pixel), ("Fisher U", primitive)) if on]
+        label = "baseline (EdgeGaussians)" if not parts else "+ " + " + ".join(parts)
+        rows.append(AblationRow(COMPONENTS, "full EdgeDoG" if len(parts) == 3 else label, {
+            "kernel": "dog" if dog else "gaussian", "pixel_uncertainty": bool(pixel),
+            "primitive_uncertainty": bool(primitive)}))
+    return rows
+
+
+def weighting_rows() -> list[AblationRow]:
+    """Table 4: the full model with each weighting function w(Up)."""
+    names = {"one": "w = 1", "exp_neg": "w = exp(-Up)", "one_minus": "w = 1 - Up", "up": "w = Up",
+             "exp": "w = exp(Up)"}
+    return [AblationRow(WEIGHTING, label, {"kernel": "dog", "pixel_uncertainty": True,
+                                           "primitive_uncertainty": True, "weighting": name})
+            for name, label in names.items()]
+
+
+def effective_config(config: TrainConfig) -> TrainConfig:
+    """The config with settings that cannot change training normalised away (for sharing runs)."""
+    if config.pixel_uncertainty and config.weighting == "one":
+        config = dataclasses.replace(config, pixel_uncertainty=False)
+    if not config.pixel_uncertainty:
+        config = dataclasses.replace(config, weighting=TrainConfig.weighting)
+    if not config.primitive_uncertainty:
+        config = dataclasses.replace(config, keep_ratio=TrainConfig.keep_ratio)
+    if config.kernel == "gaussian":
+        config = dataclasses.replace(config, k_init=TrainConfig.k_init, lr_k=TrainConfig.lr_k)
+    return config
+
+
+def run_name(config: TrainConfig) -> str:
+    """A folder name for a run, from the components it uses."""
+    parts = [config.kernel, f"pix-{config.weighting}" if config.pixel_uncertainty else "nopix",
+             "fisher" if config.primitive_uncertainty else "nofisher"]
+    return "_".join(parts)
+
+
+def train_and_extract(scene_path: Path, config: TrainConfig, folder: Path,
+                      progress: bool) -> tuple[dict, dict]:
+    """Train (or resume, or reuse a finished) run in `folder`, then extract and score its curves;
+    returns its log.json and extraction report."""
+    from edgedog.curves.report import REPORT, extract_with_report
+    from edgedog.scenes import load_scene
+    from edgedog.train.trainer import Trainer
+
+    config_path = folder / "config.json"
+    if config_path.is_file() and from_dict(read_json(config_path)["config"]) != config:
+        raise InputError(folder, "holds a run with another configuration; choose another --out")
+    scene = load_scene(scene_path, downscale=config.downscale)
+    if not (folder / "log.json").is_file():
+        folder.mkdir(parents=True, exist_ok=True)
+        atomic_write_json(config_path, {"scene": str(scene_path.resolve()), "config": to_dict(config)})
+        trainer = Trainer(scene, config, folder, progress)
+        trainer.run()
+        (folder / REPORT).unlink(missing_ok=True)  # a report of an earlier, unfinished run
+    log = read_json(folder / "log.json")
+    if (folder / REPORT).is_file():
+        return log, read_json(folder / REPORT)
+    return log, extract_with_report(folder, scene, log["detector"])[1]
+
+
+def run_ablation(scene_path: Path, out: Path, base: TrainConfig, tables: tuple[str, ...] = TABLES,
+                 progress: bool = True) -> list[dict]:
+    """Train and score every row of the chosen tables (runs shared where configs coincide) in
+    out/<run name>/; writes out/ablation.json and out/ablation.md; returns the rows' results."""
+    rows = [r for r in component_rows() + weighting_rows() if r.table in tables]
+    results = []
+    for row in rows:
+        config = effective_config(dataclasses.replace(base, **row.changes))
+        folder = out / run_name(config)
+        log, report = train_and_extract(scene_path, config, folder, progress)
+        if "metrics" not in report:
+            raise InputError(scene_path, "the ablation needs a scene with ground truth")
+        results.append({"table": row.table, "label": row.label, "run": folder.name,
+                        "metrics": report["metrics"].get("curves"),  # None: no curve to score
+                        "points_fscore_10mm": report["metrics"].get("points", {}).get("fscore_10mm"),
+                        "curves": report["counts"]["lines"] + report["counts"]["beziers"],
+                        "train_seconds": log["train_seconds"], "primitives": log["final_primitives"]})
+        write_report(out, results)
+    return results
+
+
+def _number(value: float | None, digits: int) -> str:
+    return "–" if value is None else f"{value:.{digits}f}"
+
+
+def markdown(results: list[dict]) -> str:
+    """The two tables as Markdown, rows in the order given."""
+    lines = []
+    for table in TABLES:
+        rows = [r for r in results if r["table"] == table]
+        if not rows:
+            continue
+        title = {COMPONENTS: "Components (Table 3)",
+                 WEIGHTING: "Weighting of the pixel uncertainty (Table 4)"}[table]
+        lines += [f"**{title}**", "",
+                  "| row | R5 | P5 | F5 | F10 | F20 | Acc (mm) | Comp (mm) | points F10 | curves | train (s) "
+                  "| primitives |",
+                  "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+        for r in rows:
+            m = r["metrics"] or {}
+            scores = [_number(m.get(key), 1) for key in
+                      ("recall_5mm", "precision_5mm", "fscore_5mm", "fscore_10mm", "fscore_20mm")]
+            scores += [_number(m.get("acc_mm"), 2), _number(m.get("comp_mm"), 2),
+                       _number(r["points_fscore_10mm"], 1)]
+            lines.append(f"| {r['label']} | {' | '.join(scores)} | {r['curves']} | "
+                         f"{r['train_seconds']:.0f} | {r['primitives']} |")
+        lines.append("")
+    return "\n".join(lines)
+
+
+def write_report(out: Path, results: list[dict]) -> None:
+    atomic_write_json(out / "ablation.json", results)
+    atomic_write_bytes(out / "ablation.md", markdown(results).encode())

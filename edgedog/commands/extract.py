@@ -1,0 +1,49 @@
+"""`edgedog extract RUN`: filter a run's primitives and fit lines and Béziers to them."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from edgedog.errors import InputError
+
+
+def add_parser(subparsers) -> None:
+    parser = subparsers.add_parser(
+        "extract", help="fit parametric curves (lines, cubic Béziers) to a trained run's edge points",
+        description="Filter the primitives of a run (opacity, mean edge value over all views, "
+                    "statistical outliers), group them into curves and fit lines and cubic "
+                    "Béziers. Writes curves.json (EMAP format), curves.obj, curves.ply, "
+                    "edge_points.ply and extract.json into the run folder; when the scene has "
+                    "ground truth, prints the scores of the filtered points and of the curves.")
+    parser.add_argument("run_dir", metavar="RUN", type=Path, help="run folder written by `edgedog train`")
+    parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                        help="override a setting of edgedog.curves.config.ExtractConfig (repeatable)")
+    parser.set_defaults(run=run)
+
+
+def print_report(report: dict) -> None:
+    """The counts, then a table of the points' and curves' scores when there is ground truth."""
+    for name, count in report["counts"].items():
+        print(f"{name.replace('_', ' '):<18} {count}")
+    if "metrics" in report:
+        print(f"vs {report['ground_truth']}")
+        print(f"{'':<8} {'Acc (mm)':>8} {'Comp (mm)':>9} {'F5':>7} {'F10':>7} {'F20':>7}")
+        for name, m in report["metrics"].items():
+            print(f"{name:<8} {m['acc_mm']:8.2f} {m['comp_mm']:9.2f} {m['fscore_5mm']:7.2f} "
+                  f"{m['fscore_10mm']:7.2f} {m['fscore_20mm']:7.2f}")
+
+
+def run(args: argparse.Namespace) -> None:
+    from edgedog.curves.config import ExtractConfig
+    from edgedog.curves.extract import OUTPUTS, run_scene
+    from edgedog.curves.report import REPORT, extract_with_report
+    from edgedog.train.config import with_overrides
+
+    if not args.run_dir.is_dir():
+        raise InputError(args.run_dir, "run folder not found")
+    config = with_overrides(ExtractConfig(), args.overrides)
+    scene, detector = run_scene(args.run_dir)
+    _, report = extract_with_report(args.run_dir, scene, detector, config)
+    print_report(report)
+    print(f"wrote {', '.join(OUTPUTS + (REPORT,))} in {args.run_dir}")

@@ -1,0 +1,95 @@
+"""Typed settings of curve extraction (`edgedog extract RUN --set key=value`).
+
+Lengths of the grouping and fitting stages are fractions of the scene size: the diagonal of
+the bounding box of the filtered points (about 1.4 for an ABC object, where 1 unit = 1000 mm).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+from edgedog.errors import ConfigError
+
+
+@dataclass(frozen=True)
+class ExtractConfig:
+    """Every setting of `extract`. Each filter can be switched off on its own.
+
+    The grouping and fitting defaults were chosen on a noisy ABC run (primitives ~9 mm from the
+    edges); cleaner runs can use a smaller `node_spacing` and tolerances.
+    """
+
+    # --- filters (EdgeGaussians' post-processing)
+    filter_opacity: bool = True
+    min_opacity: float = 0.2
+    """Keep primitives whose (activated) opacity is above this."""
+    filter_projection: bool = True
+    min_edge_value: float = 0.1
+    """Keep points whose edge-map value, averaged over ALL views, is above this (a view that does
+    not see the point counts as 0)."""
+    filter_outliers: bool = True
+    outlier_neighbours: int = 25
+    outlier_std: float = 2.0
+    """Statistical outliers: drop points whose mean distance to their `outlier_neighbours` nearest
+    points exceeds the mean of that value over all points by `outlier_std` standard deviations."""
+
+    # --- directions
+    min_elongation: float = 1.5
+    """A primitive's own axis (largest scale) is its direction when largest / middle scale is at
+    least this; rounder primitives get the principal axis of their neighbourhood instead."""
+    direction_neighbours: int = 32
+    """Neighbourhood size of those principal axes."""
+
+    # --- grouping (fractions of the scene size)
+    smoothing_radius: float = 0.015
+    """Points move across their direction onto the centre of the agreeing points this close
+    (directions are re-estimated from the same neighbours)."""
+    smoothing_iterations: int = 1
+    """More iterations thin the point tube further but merge nearby parallel edges."""
+    node_spacing: float = 0.006
+    """Spacing of the chain vertices the points are thinned to."""
+    link_distance: float = 0.03
+    """Longest link between two vertices of a chain."""
+    join_distance: float = 0.045
+    """Longest gap bridged between two chain ends that face each other (a curve broken where
+    points are missing; the two ends of a circle)."""
+    link_angle: float = 30.0
+    """Degrees: linked vertices' directions, and the vector between them, agree within this."""
+    corner_angle: float = 60.0
+    """Degrees: a chain is split where it turns more than this over a few vertices."""
+    min_chain_vertices: int = 4
+    """Shorter chains are dropped as noise, and shorter side branches are pruned."""
+
+    # --- fitting (fractions of the scene size)
+    line_tolerance: float = 0.004
+    """A chain is a line when RANSAC finds one holding all but `max_outlier_share` of its vertices
+    within this distance; also the collinearity tolerance of merges."""
+    max_outlier_share: float = 0.05
+    bezier_tolerance: float = 0.004
+    """A cubic Bézier is kept when its RMS distance to the chain is below this; else it is split."""
+    snap_radius: float = 0.01
+    """Curve ends this close, or whose extensions meet within it, are snapped to one junction
+    point; a chain end this close to another chain's interior splits it there (a T)."""
+    seed: int = 0
+    """Seed of RANSAC."""
+
+    def __post_init__(self):
+        for name in ("outlier_neighbours", "direction_neighbours", "min_chain_vertices"):
+            if getattr(self, name) < 2:
+                raise ConfigError(f"{name} must be at least 2, got {getattr(self, name)}")
+        if self.smoothing_iterations < 0:
+            raise ConfigError(f"smoothing_iterations must be >= 0, got {self.smoothing_iterations}")
+        for name in ("smoothing_radius", "node_spacing", "link_distance", "join_distance", "line_tolerance",
+                     "bezier_tolerance", "snap_radius"):
+            if not getattr(self, name) > 0:
+                raise ConfigError(f"{name} must be positive, got {getattr(self, name)}")
+        for name in ("link_angle", "corner_angle"):
+            if not 0 < getattr(self, name) < 90:
+                raise ConfigError(f"{name} must be in (0, 90) degrees, got {getattr(self, name)}")
+        if not 0 <= self.max_outlier_share < 1:
+            raise ConfigError(f"max_outlier_share must be in [0, 1), got {self.max_outlier_share}")
+
+
+def to_dict(config: ExtractConfig) -> dict:
+    return dataclasses.asdict(config)

@@ -1,0 +1,149 @@
+"""The public extraction API: oriented edge points -> parametric curves, and a run folder's
+primitives -> filtered points and curves written beside them."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from edgedog.curve_files import EdgeCurves, write_edges, write_point_columns
+from edgedog.curves import filtering, fitting, grouping, junctions, topology
+from edgedog.curves.config import ExtractConfig
+from edgedog.curves.primitives import EdgePrimitives, read_primitives
+from edgedog.errors import InputError
+from edgedog.files import read_json
+from edgedog.scenes import Scene, load_scene
+
+OUTPUTS = ("curves.json", "curves.obj", "curves.ply", "edge_points.ply")
+"""What `extract_run` writes in the run folder."""
+
+
+def scene_size(points: np.ndarray) -> float:
+    """Diagonal of the bounding box of points (N, 3); the unit of the relative settings."""
+    return float(np.linalg.norm(np.ptp(points, axis=0))) if len(points) else 0.0
+
+
+def extract_curves(points: np.ndarray, directions: np.ndarray, config: ExtractConfig = ExtractConfig(),
+                   size: float | None = None) -> tuple[EdgeCurves, list[grouping.Chain]]:
+    """Fit lines and cubic Béziers to oriented edge points.
+
+    Args:
+        points: (N, 3) edge points; directions: (N, 3) their edge directions (sign ignored).
+        size: the scene size the relative lengths of `config` refer to; default the diagonal of
+            the points' bounding box.
+    Returns:
+        the curves (lines (L, 2, 3) and Béziers (B, 4, 3)), and the chains they were fitted to
+        (one per curve between corners and junctions; a circle is one closed chain).
+    """
+    points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    directions = np.asarray(directions, dtype=np.float64).reshape(-1, 3)
+    directions = directions / np.linalg.norm(directions, axis=1, keepdims=True).clip(1e-18)
+    size = scene_size(points) if size is None else size
+    if len(points) < config.min_chain_vertices or size <= 0:
+        return EdgeCurves(), []
+    c = config
+    min_cos = math.cos(math.radians(c.link_angle))
+    smooth_points, smooth_dirs = grouping.smooth(points, directions, c.smoothing_radius * size, min_cos,
+                                                 c.smoothing_iterations)
+    vertices, axes = grouping.thin(smooth_points, smooth_dirs, c.node_spacing * size, min_cos)
+    pairs, lengths = grouping.candidate_links(vertices, axes, c.link_distance * size, min_cos)
+    links = grouping.prune_spurs(grouping.spanning_links(pairs, lengths, len(vertices)), len(vertices),
+                                 c.min_chain_vertices)
+    chains = grouping.chains_from_links(vertices, links, pairs, c.min_chain_vertices)
+    chains = topology.join_chains(chains, c.join_distance * size, min_cos)
+    chains = [piece for chain in chains for piece in topology.split_at_corners(chain, c.corner_angle)]
+    chains = topology.split_at_junctions(chains, c.snap_radius * size)
+    rng = np.random.default_rng(c.seed)
+    pieces = [piece for chain in chains for piece in fitting.fit_chain(
+        chain, c.line_tolerance * size, c.bezier_tolerance * size, c.max_outlier_share, rng)]
+    pieces = junctions.merge_collinear(pieces, c.snap_radius * size, c.line_tolerance * size)
+    pieces = junctions.snap_ends(pieces, c.snap_radius * size)
+    return EdgeCurves(lines=[p for p in pieces if len(p) == 2],
+                      beziers=[p for p in pieces if len(p) == 4]), chains
+
+
+def edge_directions(primitives: EdgePrimitives, config: ExtractConfig) -> np.ndarray:
+    """(N, 3) directions: a primitive's own axis where it is elongated enough to trust, else the
+    principal axis of its neighbourhood."""
+    directions = primitives.directions.copy()
+    round_ = primitives.elongation < config.min_elongation
+    if round_.any() and len(primitives) >= 3:
+        directions[round_] = grouping.principal_axes(primitives.points, config.direction_neighbours)[round_]
+    return directions
+
+
+@dataclass
+class RunExtraction:
+    """What `extract_run` produced.
+
+    points: the filtered primitives; directions: (N, 3) the directions used for them; counts:
+    primitives left after each filter, chains, lines and Béziers, in pipeline order.
+    """
+
+    curves: EdgeCurves
+    points: EdgePrimitives
+    directions: np.ndarray
+    counts: dict[str, int] = field(default_factory=dict)
+
+
+def run_scene(run_dir: Path) -> tuple[Scene, str]:
+    """The scene a run was trained on and the name of the edge maps it used (from log.json)."""
+    log = read_json(run_dir / "log.json")
+    if not isinstance(log, dict) or "scene" not in log or "detector" not in log:
+        raise InputError(run_dir / "log.json", "expected 'scene' and 'detector' keys (from edgedog train)")
+    return load_scene(log["scene"]), log["detector"]
+
+
+def filter_primitives(primitives: EdgePrimitives, config: ExtractConfig, scene: Scene | None,
+                      detector: str | None, counts: dict[str, int]) -> EdgePrimitives:
+    """Apply the switched-on filters in order (opacity, projection, outliers), recording in
+    `counts` how many primitives are left after each."""
+    counts["primitives"] = len(primitives)
+    if config.filter_opacity:
+        primitives = primitives.subset(filtering.opacity_mask(primitives.opacity, config.min_opacity))
+        counts["after_opacity"] = len(primitives)
+    if config.filter_projection:
+        keep = filtering.projection_mask(primitives.points, scene, detector, config.min_edge_value)
+        primitives = primitives.subset(keep)
+        counts["after_projection"] = len(primitives)
+    if config.filter_outliers:
+        keep = filtering.outlier_mask(primitives.points, config.outlier_neighbours, config.outlier_std)
+        primitives = primitives.subset(keep)
+        counts["after_outliers"] = len(primitives)
+    return primitives
+
+
+def write_edge_points(path: Path, points: EdgePrimitives, directions: np.ndarray) -> None:
+    """edge_points.ply: x, y, z, direction dx, dy, dz, opacity, k_0, k_1 (and uncertainty)."""
+    columns = {name: points.points[:, i] for i, name in enumerate("xyz")}
+    columns.update({name: directions[:, i] for i, name in enumerate(("dx", "dy", "dz"))})
+    columns.update({"opacity": points.opacity, "k_0": points.k[:, 0], "k_1": points.k[:, 1]})
+    if points.uncertainty is not None:
+        columns["uncertainty"] = points.uncertainty
+    write_point_columns(path, columns)
+
+
+def extract_run(run_dir: str | Path, config: ExtractConfig = ExtractConfig(), scene: Scene | None = None,
+                detector: str | None = None) -> RunExtraction:
+    """Filter a run's primitives, fit curves, and write `OUTPUTS` atomically in the run folder.
+
+    Args:
+        scene, detector: the run's scene and edge maps, when the caller has them; by default
+            read from the run's log.json, and only when the projection filter needs them.
+    """
+    run_dir = Path(run_dir)
+    primitives = read_primitives(run_dir / "primitives.ply")
+    if config.filter_projection and (scene is None or detector is None):
+        scene, detector = run_scene(run_dir)
+    counts: dict[str, int] = {}
+    points = filter_primitives(primitives, config, scene, detector, counts)
+    directions = edge_directions(points, config)
+    curves, chains = extract_curves(points.points, directions, config)
+    counts.update(chains=len(chains), lines=len(curves.lines), beziers=len(curves.beziers))
+    for name in OUTPUTS[:3]:
+        write_edges(run_dir / name, curves)
+    write_edge_points(run_dir / "edge_points.ply", points, directions)
+    return RunExtraction(curves, points, directions, counts)

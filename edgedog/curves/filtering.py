@@ -1,0 +1,46 @@
+"""The three point filters of EdgeGaussians' post-processing, each returning a keep mask (N,)."""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from edgedog.scenes import Scene
+
+
+def opacity_mask(opacity: np.ndarray, min_opacity: float) -> np.ndarray:
+    """Keep the primitives with opacity (N,) above `min_opacity`."""
+    return opacity > min_opacity
+
+
+def mean_edge_values(points: np.ndarray, scene: Scene, detector: str) -> np.ndarray:
+    """Edge-map value under each point (N, 3), averaged over all views of the scene; (N,).
+
+    A view that does not see a point contributes 0, so points seen by few views score low.
+    """
+    total = np.zeros(len(points))
+    for i in range(len(scene)):
+        pixels, inside = scene.camera(i).pixels(points)
+        edge_map = scene.load_edge_map(i, detector)
+        total[inside] += edge_map[pixels[inside, 1], pixels[inside, 0]]
+    return total / max(len(scene), 1)
+
+
+def projection_mask(points: np.ndarray, scene: Scene, detector: str, min_edge_value: float) -> np.ndarray:
+    """Keep the points (N, 3) whose mean edge value over all views is above `min_edge_value`."""
+    return mean_edge_values(points, scene, detector) > min_edge_value
+
+
+def outlier_mask(points: np.ndarray, neighbours: int = 25, std_ratio: float = 2.0) -> np.ndarray:
+    """Statistical outlier removal on points (N, 3), as open3d's remove_statistical_outlier.
+
+    Each point's mean distance to its `neighbours` nearest points (itself included, as open3d
+    counts it) is compared with the mean and sample standard deviation of that value over all
+    points; points above mean + std_ratio * std are outliers.
+    """
+    if len(points) <= neighbours:
+        return np.ones(len(points), dtype=bool)
+    distances, _ = cKDTree(points).query(points, k=neighbours)
+    mean_distance = distances.mean(axis=1)
+    limit = mean_distance.mean() + std_ratio * mean_distance.std(ddof=1)
+    return mean_distance <= limit

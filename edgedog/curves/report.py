@@ -1,0 +1,46 @@
+"""Extraction of a run folder with its report: counts, and scores when the scene has ground truth.
+
+Shared by `edgedog extract`, the end of `edgedog train` and the benchmarks, so that every number
+about a run's curves comes from one place and lands in the run's extract.json.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from edgedog.curve_files import EdgeCurves
+from edgedog.curves.config import ExtractConfig, to_dict
+from edgedog.curves.extract import RunExtraction, extract_run
+from edgedog.files import atomic_write_json
+from edgedog.metrics import EdgeMetrics, evaluate
+from edgedog.scenes import Scene
+
+REPORT = "extract.json"
+
+
+def score_extraction(result: RunExtraction, scene: Scene) -> dict[str, EdgeMetrics]:
+    """Scores of the filtered points and of the curves against the scene's ground truth (empty
+    when it has none; a set with nothing to score, e.g. every curve under 5 mm, is left out)."""
+    if scene.ground_truth is None:
+        return {}
+    gt = scene.ground_truth.load()
+    samples = {"points": EdgeCurves(points=result.points.points).transformed(scene.world_to_gt).points,
+               "curves": result.curves.transformed(scene.world_to_gt).sample()}
+    return {name: evaluate(points, gt) for name, points in samples.items() if len(points)}
+
+
+def extract_with_report(run_dir: Path, scene: Scene, detector: str,
+                        config: ExtractConfig = ExtractConfig()) -> tuple[RunExtraction, dict]:
+    """Extract a run's curves (see `extract_run`), score them, and write RUN/extract.json.
+
+    Returns the extraction and the report: {"config", "counts", and with ground truth
+    "ground_truth" and "metrics"}, metrics keyed "points" / "curves" (each only when there is
+    something to score) as `EdgeMetrics.to_dict()`.
+    """
+    result = extract_run(run_dir, config, scene, detector)
+    report = {"config": to_dict(config), "counts": result.counts}
+    if scene.ground_truth is not None:
+        report["ground_truth"] = scene.ground_truth.description
+        report["metrics"] = {name: m.to_dict() for name, m in score_extraction(result, scene).items()}
+    atomic_write_json(Path(run_dir) / REPORT, report)
+    return result, report

@@ -1,0 +1,1 @@
+"""GLSL sources of the GL renderer, shipped as package data (`edgedog.shaders`)."""

@@ -1,0 +1,63 @@
+"""`edgedog bench ablation`: the rows of the paper's Tables 3 and 4, shared runs, reuse."""
+
+from __future__ import annotations
+
+import dataclasses
+
+from edgedog.bench.ablation import (
+    COMPONENTS,
+    WEIGHTING,
+    component_rows,
+    effective_config,
+    markdown,
+    run_ablation,
+    run_name,
+    weighting_rows,
+)
+from edgedog.files import read_json
+from edgedog.train.config import TrainConfig, preset
+
+
+def test_component_rows_cover_every_combination_once():
+    rows = component_rows()
+    combos = {(r.changes["kernel"], r.changes["pixel_uncertainty"], r.changes["primitive_uncertainty"])
+              for r in rows}
+    assert len(rows) == len(combos) == 8
+    assert rows[0].changes == {"kernel": "gaussian", "pixel_uncertainty": False, "primitive_uncertainty": False}
+    assert rows[-1].label == "full EdgeDoG" and rows[-1].changes["kernel"] == "dog"
+    assert [r.changes["weighting"] for r in weighting_rows()] == ["one", "exp_neg", "one_minus", "up", "exp"]
+
+
+def test_rows_that_train_identically_share_a_run():
+    base = TrainConfig()
+    full = effective_config(dataclasses.replace(base, weighting="exp"))
+    one = effective_config(dataclasses.replace(base, weighting="one"))
+    off = effective_config(dataclasses.replace(base, pixel_uncertainty=False, weighting="up"))
+    assert one == off != full
+    assert run_name(one) == "dog_nopix_fisher" and run_name(full) == "dog_pix-exp_fisher"
+    baseline = effective_config(dataclasses.replace(base, kernel="gaussian", k_init=(1.0, 0.0)))
+    assert baseline.k_init == base.k_init  # k is unused by the Gaussian kernel
+
+
+def test_weighting_table_trains_scores_and_reuses_its_runs(builtin_scene_dir, tmp_path):
+    base = dataclasses.replace(preset("fast"), downscale=4, epochs=4, init_count=300, duplicate_epochs=(1,),
+                               opacity_from_epoch=0, scales_from_epoch=0,
+                               cull_projection_epochs=(), cull_opacity_epochs=(), fisher_every=1,
+                               checkpoint_every=4, init_side=0.8)
+    results = run_ablation(builtin_scene_dir, tmp_path, base, (WEIGHTING,), progress=False)
+    assert [r["table"] for r in results] == [WEIGHTING] * 5
+    runs = sorted(p.name for p in tmp_path.iterdir() if p.is_dir())
+    assert len(runs) == 5 and "dog_nopix_fisher" in runs  # w = 1 is the run without the term
+    assert results[0]["run"] == "dog_nopix_fisher"
+    for r in results:
+        assert r["primitives"] > 0 and r["train_seconds"] > 0
+        assert r["points_fscore_10mm"] is not None and 0 <= r["points_fscore_10mm"] <= 100
+    saved = read_json(tmp_path / "ablation.json")
+    assert saved == results
+    table = (tmp_path / "ablation.md").read_text()
+    assert table.count("| w = ") == 5 and COMPONENTS not in table
+    stamps = {run: (tmp_path / run / "log.json").stat().st_mtime_ns for run in runs}
+    again = run_ablation(builtin_scene_dir, tmp_path, base, (WEIGHTING,), progress=False)
+    assert again == results
+    assert stamps == {run: (tmp_path / run / "log.json").stat().st_mtime_ns for run in runs}
+    assert markdown(again) == table

@@ -1,0 +1,323 @@
+"""Curve extraction: filters, grouping and fitting on synthetic edge points with known answers."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from plyfile import PlyData, PlyElement
+from scene_builders import look_at_gl
+from scipy.spatial import cKDTree
+
+from edgedog.curve_files import EdgeCurves, read_edges
+from edgedog.curves import filtering
+from edgedog.curves.config import ExtractConfig
+from edgedog.curves.extract import extract_curves, extract_run
+from edgedog.curves.primitives import read_primitives
+from edgedog.errors import ConfigError, InputError
+from edgedog.scenes.camera import Camera, intrinsics, w2c_from_opengl_c2w
+
+NOISE = 0.002  # 2 mm per axis: about the noise of a well-trained run
+DIRECTION_NOISE = 10.0  # degrees
+# Distances from the fitted curves to the true ones: RMS within the fitting tolerance (0.004 of
+# scenes of size ~1), the worst point within twice that.
+RMS_ERROR, MAX_ERROR = 0.004, 0.008
+
+
+def noisy(points: np.ndarray, tangents: np.ndarray, rng) -> tuple[np.ndarray, np.ndarray]:
+    """Points (N, 3) and unit directions (N, 3) with position noise and tilted, sign-flipped
+    directions."""
+    tangents = tangents / np.linalg.norm(tangents, axis=1, keepdims=True)
+    tilt = rng.normal(size=tangents.shape)
+    tilt -= np.sum(tilt * tangents, axis=1, keepdims=True) * tangents
+    tilt /= np.linalg.norm(tilt, axis=1, keepdims=True)
+    angle = np.radians(rng.uniform(0, DIRECTION_NOISE, size=(len(points), 1)))
+    directions = np.cos(angle) * tangents + np.sin(angle) * tilt
+    directions *= rng.choice([-1.0, 1.0], size=(len(points), 1))
+    return points + rng.normal(0.0, NOISE, size=points.shape), directions
+
+
+def segment(a, b, spacing: float = 0.0025) -> tuple[np.ndarray, np.ndarray]:
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    t = np.linspace(0.0, 1.0, int(np.linalg.norm(b - a) / spacing))[:, None]
+    return a + t * (b - a), np.repeat((b - a)[None], len(t), axis=0)
+
+
+def circle(centre, radius, n=800) -> tuple[np.ndarray, np.ndarray]:
+    a = np.linspace(0.0, 2 * np.pi, n, endpoint=False)
+    points = np.stack([radius * np.cos(a), radius * np.sin(a), 0 * a], axis=1) + centre
+    return points, np.stack([-np.sin(a), np.cos(a), 0 * a], axis=1)
+
+
+def helix(n=1500) -> tuple[np.ndarray, np.ndarray]:
+    a = np.linspace(0.0, 4 * np.pi, n)
+    points = np.stack([0.5 + 0.25 * np.cos(a), 0.5 + 0.25 * np.sin(a), 0.1 + 0.06 * a], axis=1)
+    return points, np.stack([-0.25 * np.sin(a), 0.25 * np.cos(a), 0.06 + 0 * a], axis=1)
+
+
+def extract(*curves, seed=0, **settings):
+    rng = np.random.default_rng(seed)
+    parts = [noisy(p, d, rng) for p, d in curves]
+    points = np.concatenate([p for p, _ in parts])
+    directions = np.concatenate([d for _, d in parts])
+    return extract_curves(points, directions, ExtractConfig(**settings))
+
+
+def assert_close(curves: EdgeCurves, truth: np.ndarray) -> None:
+    """Samples of the curves lie near the dense true points (M, 3)."""
+    distance = cKDTree(truth).query(curves.sample(0.001))[0]
+    print(f"rms {np.sqrt(np.mean(distance**2)):.4f} max {distance.max():.4f}")
+    assert np.sqrt(np.mean(distance**2)) < RMS_ERROR and distance.max() < MAX_ERROR
+
+
+def coverage(curves: EdgeCurves, truth: np.ndarray, tau: float = 0.01) -> float:
+    """Share of the true points (M, 3) within tau of the curves."""
+    return float(np.mean(cKDTree(curves.sample(0.001)).query(truth)[0] < tau))
+
+
+def end_points(curves: EdgeCurves) -> np.ndarray:
+    return np.concatenate([curves.lines[:, [0, -1]], curves.beziers[:, [0, -1]]]).reshape(-1, 3)
+
+
+def assert_shared(ends: np.ndarray) -> None:
+    """Every end coincides exactly with at least one other end (the pieces form a closed
+    network or chain without gaps)."""
+    _, counts = np.unique(np.round(ends, 12), axis=0, return_counts=True)
+    assert counts.min() >= 2, ends
+
+
+# --- grouping and fitting ---------------------------------------------------------------------
+
+
+def test_three_lines_come_back_as_three_lines():
+    truth = [segment([0, 0, 0], [1, 0, 0]), segment([0, 0.3, 0.2], [0.6, 0.8, 0.2]),
+             segment([0.2, 0.1, 0.8], [0.2, 0.9, 0.5])]
+    curves, chains = extract(*truth)
+    assert len(chains) == 3 and curves.lines.shape == (3, 2, 3) and len(curves.beziers) == 0
+    dense = np.concatenate([segment(p[0], p[-1], 0.0005)[0] for p, _ in truth])
+    assert_close(curves, dense)
+    assert coverage(curves, dense) > 0.98
+
+
+def test_circle_is_one_closed_chain_of_beziers():
+    truth = circle(np.array([0.5, 0.5, 0.3]), 0.3)
+    curves, chains = extract(truth)
+    assert len(chains) == 1 and chains[0].closed
+    assert len(curves.lines) == 0 and len(curves.beziers) >= 2
+    assert_shared(end_points(curves))  # the pieces close the loop
+    dense = circle(np.array([0.5, 0.5, 0.3]), 0.3, 20000)[0]
+    assert_close(curves, dense)
+    assert coverage(curves, dense) == 1.0
+
+
+def test_helix_is_one_chain_of_beziers():
+    truth = helix()
+    curves, chains = extract(truth)
+    assert len(chains) == 1 and not chains[0].closed
+    assert len(curves.beziers) >= 3
+    ends = end_points(curves)
+    _, counts = np.unique(np.round(ends, 12), axis=0, return_counts=True)
+    assert sorted(counts)[:3] == [1, 1, 2]  # one open chain: two free ends, the rest shared
+    dense = helix(100000)[0]
+    assert_close(curves, dense)
+    assert coverage(curves, dense) > 0.98
+
+
+def test_t_junction_is_three_lines_meeting_at_one_point():
+    curves, chains = extract(segment([0, 0.5, 0], [1, 0.5, 0]), segment([0.5, 0.5, 0], [0.5, 1.0, 0]))
+    assert len(chains) == 3 and curves.lines.shape == (3, 2, 3)
+    ends = end_points(curves)
+    junction, counts = np.unique(np.round(ends, 12), axis=0, return_counts=True)
+    assert counts.max() == 3
+    np.testing.assert_allclose(junction[np.argmax(counts)], [0.5, 0.5, 0.0], atol=0.003)
+
+
+def test_square_is_four_lines_with_shared_corners():
+    corners = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float)
+    curves, chains = extract(*[segment(corners[i], corners[(i + 1) % 4]) for i in range(4)])
+    assert len(chains) == 4 and curves.lines.shape == (4, 2, 3)
+    shared, counts = np.unique(np.round(end_points(curves), 12), axis=0, return_counts=True)
+    assert len(shared) == 4 and np.all(counts == 2)
+    assert cKDTree(corners).query(shared)[0].max() < 0.003
+
+
+def test_extraction_is_deterministic_and_handles_too_few_points():
+    a = extract(helix(), seed=3)[0]
+    b = extract(helix(), seed=3)[0]
+    np.testing.assert_array_equal(a.beziers, b.beziers)
+    curves, chains = extract_curves(np.zeros((2, 3)), np.ones((2, 3)))
+    assert curves.num_curves == 0 and chains == []
+
+
+def test_config_rejects_bad_settings():
+    with pytest.raises(ConfigError, match="link_angle"):
+        ExtractConfig(link_angle=95)
+    with pytest.raises(ConfigError, match="node_spacing"):
+        ExtractConfig(node_spacing=0)
+
+
+# --- filters ------------------------------------------------------------------------------------
+
+
+def test_outlier_mask_drops_isolated_points():
+    rng = np.random.default_rng(0)
+    cloud = np.concatenate([segment([0, 0, 0], [1, 0, 0])[0] + rng.normal(0, 0.002, (400, 3)),
+                            [[0.5, 0.5, 0.5], [0.2, -0.4, 0.1]]])
+    keep = filtering.outlier_mask(cloud, neighbours=25, std_ratio=2.0)
+    assert not keep[-2:].any() and keep[:-2].mean() > 0.97
+
+
+class _TwoViewScene:
+    """A stand-in for Scene: view 0 looks at the origin, view 1 looks away from it."""
+
+    detector = "exact"
+
+    def __init__(self):
+        K = intrinsics(50.0, 50.0, 49.5, 49.5)
+        self.cameras = [Camera(K, w2c_from_opengl_c2w(look_at_gl([0, -3, 0], [0, 0, 0])), 100, 100),
+                        Camera(K, w2c_from_opengl_c2w(look_at_gl([0, -3, 0], [0, -6, 0])), 100, 100)]
+        self.maps = [np.zeros((100, 100), np.float32), np.ones((100, 100), np.float32)]
+        self.maps[0][:, 49:51] = 1.0  # a vertical edge through the image centre
+        self.maps[0][10, 10] = 0.3
+
+    def __len__(self):
+        return 2
+
+    def camera(self, i):
+        return self.cameras[i]
+
+    def load_edge_map(self, i, detector):
+        assert detector == self.detector
+        return self.maps[i]
+
+
+def test_mean_edge_value_counts_unseen_views_as_zero():
+    scene = _TwoViewScene()
+    on_edge = np.array([[0.0, 0.0, 0.0]])
+    pixel, inside = scene.camera(0).pixels(on_edge)
+    assert inside[0] and scene.maps[0][pixel[0, 1], pixel[0, 0]] == 1.0
+    assert not scene.camera(1).pixels(on_edge)[1][0]  # behind view 1, whose map is all ones
+    off_edge = np.array([[0.5, 0.0, 0.5]])
+    values = filtering.mean_edge_values(np.vstack([on_edge, off_edge]), scene, "exact")
+    np.testing.assert_allclose(values, [0.5, 0.0])
+    keep = filtering.projection_mask(np.vstack([on_edge, off_edge]), scene, "exact", 0.1)
+    assert keep.tolist() == [True, False]
+
+
+# --- runs ---------------------------------------------------------------------------------------
+
+
+def write_primitives(path, points, directions, opacity, uncertainty=None):
+    """A primitives.ply as `edgedog train` writes it, elongated along `directions` (N, 3)."""
+    n = len(points)
+    x = np.array([1.0, 0.0, 0.0])
+    d = directions / np.linalg.norm(directions, axis=1, keepdims=True)
+    d *= np.where(d[:, :1] < 0, -1.0, 1.0)  # the sign is free; away from -x the formula is stable
+    # Quaternion (w, x, y, z) of the shortest rotation taking the x axis to each direction.
+    half = d + x
+    half /= np.linalg.norm(half, axis=1, keepdims=True)
+    quats = np.concatenate([np.sum(half * x, axis=1, keepdims=True), np.cross(x, half)], axis=1) * 2.0
+    names = ["x", "y", "z", "scale_0", "scale_1", "scale_2", "rot_0", "rot_1", "rot_2", "rot_3",
+             "opacity", "k_0", "k_1"] + (["uncertainty"] if uncertainty is not None else [])
+    rows = np.empty(n, dtype=[(name, "f4") for name in names])
+    for i, c in enumerate("xyz"):
+        rows[c] = points[:, i]
+    rows["scale_0"], rows["scale_1"], rows["scale_2"] = 0.006, 0.002, 0.002
+    for i in range(4):
+        rows[f"rot_{i}"] = quats[:, i]
+    rows["opacity"], rows["k_0"], rows["k_1"] = opacity, 0.1, 0.2
+    if uncertainty is not None:
+        rows["uncertainty"] = uncertainty
+    PlyData([PlyElement.describe(rows, "vertex")]).write(str(path))
+
+
+def test_primitive_direction_is_the_axis_of_the_largest_scale(tmp_path):
+    rng = np.random.default_rng(0)
+    directions = rng.normal(size=(50, 3))
+    write_primitives(tmp_path / "primitives.ply", rng.uniform(size=(50, 3)), directions, 0.5)
+    primitives = read_primitives(tmp_path / "primitives.ply")
+    unit = directions / np.linalg.norm(directions, axis=1, keepdims=True)
+    np.testing.assert_allclose(np.abs(np.sum(primitives.directions * unit, axis=1)), 1.0, atol=1e-5)
+    np.testing.assert_allclose(primitives.elongation, 3.0, rtol=1e-5)
+    assert primitives.uncertainty is None
+
+
+def test_read_primitives_errors_name_the_file(tmp_path):
+    with pytest.raises(InputError, match="no such file"):
+        read_primitives(tmp_path / "primitives.ply")
+    (tmp_path / "primitives.ply").write_text("not a ply")
+    with pytest.raises(InputError, match="primitives.ply: not a readable PLY"):
+        read_primitives(tmp_path / "primitives.ply")
+    rows = np.zeros(3, dtype=[("x", "f4"), ("y", "f4"), ("z", "f4")])
+    PlyData([PlyElement.describe(rows, "vertex")]).write(str(tmp_path / "primitives.ply"))
+    with pytest.raises(InputError, match="no vertex properties scale_0"):
+        read_primitives(tmp_path / "primitives.ply")
+
+
+def test_extract_run_filters_fits_and_writes_its_outputs(tmp_path):
+    rng = np.random.default_rng(1)
+    points, tangents = segment([0.0, 0.0, -0.2], [0.0, 0.0, 0.2], 0.002)
+    stray = rng.uniform([0.1, -0.1, -0.3], [0.3, 0.1, 0.3], size=(6, 3))
+    faint = points[::10] + [-0.1, 0.0, 0.0]
+    cloud = np.concatenate([points, stray, faint])
+    opacity = np.concatenate([np.full(len(points) + len(stray), 0.6), np.full(len(faint), 0.1)])
+    directions = np.concatenate([tangents, tangents[:6], tangents[:len(faint)]])
+    write_primitives(tmp_path / "primitives.ply", cloud, directions, opacity,
+                     uncertainty=np.arange(len(cloud), dtype=float))
+    scene = _TwoViewScene()  # the segment lies on view 0's edge column; the stray points do not
+    config = ExtractConfig(filter_outliers=False)
+    result = extract_run(tmp_path, config, scene, scene.detector)
+    c = result.counts
+    assert c["primitives"] == len(cloud) and c["after_opacity"] == len(points) + len(stray)
+    assert c["after_projection"] == len(points) and "after_outliers" not in c
+    assert c["chains"] == 1 and c["lines"] == 1 and c["beziers"] == 0
+    np.testing.assert_allclose(np.sort(result.curves.lines[0, :, 2]), [-0.2, 0.2], atol=0.01)
+    for name in ("curves.json", "curves.obj", "curves.ply"):
+        assert read_edges(tmp_path / name).num_curves == 1
+    np.testing.assert_array_equal(read_edges(tmp_path / "curves.json").lines, result.curves.lines)
+    ply = PlyData.read(str(tmp_path / "edge_points.ply"))["vertex"]
+    assert ply.count == len(points)
+    assert {"dx", "dy", "dz", "opacity", "k_0", "k_1", "uncertainty"} <= set(ply.data.dtype.names)
+    np.testing.assert_array_equal(ply["uncertainty"], np.arange(len(points)))
+
+
+def test_extract_run_with_nothing_left_writes_empty_files(tmp_path):
+    points, tangents = segment([0.0, 0.0, -0.2], [0.0, 0.0, 0.2], 0.002)
+    write_primitives(tmp_path / "primitives.ply", points, tangents, 0.1)
+    result = extract_run(tmp_path, ExtractConfig(filter_projection=False))
+    assert result.counts["after_opacity"] == 0 and result.curves.num_curves == 0
+    for name in ("curves.json", "curves.obj", "curves.ply", "edge_points.ply"):
+        assert read_edges(tmp_path / name).is_empty
+
+
+@pytest.mark.shared_data
+def test_cli_extract_on_ground_truth_primitives(abc_nef_scene_dir, tmp_path):
+    from edgedog.scenes import load_scene
+
+    gt = load_scene(abc_nef_scene_dir).ground_truth.load()[::2]
+    rng = np.random.default_rng(0)
+    neighbourhoods = gt[cKDTree(gt).query(gt, 8)[1]] - gt[:, None]
+    directions = np.linalg.svd(neighbourhoods, full_matrices=False)[2][:, 0]
+    write_primitives(tmp_path / "primitives.ply", gt + rng.normal(0, 0.002, gt.shape), directions, 0.8)
+    (tmp_path / "log.json").write_text(json.dumps({"scene": str(abc_nef_scene_dir), "detector": "pidinet"}))
+    result = subprocess.run([sys.executable, "-m", "edgedog", "extract", tmp_path,
+                             "--set", "filter_projection=false"], capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr
+    assert "after projection" not in result.stdout and "after outliers" in result.stdout
+    report = json.loads((tmp_path / "extract.json").read_text())
+    assert 10 <= report["counts"]["chains"] <= 60
+    assert report["metrics"]["curves"]["fscore_10mm"] > 90
+    assert report["metrics"]["curves"]["acc_mm"] < 3
+
+
+def test_cli_extract_errors_are_one_line(tmp_path):
+    result = subprocess.run([sys.executable, "-m", "edgedog", "extract", tmp_path / "missing"],
+                            capture_output=True, text=True)
+    assert result.returncode == 2 and result.stderr.count("\n") == 1
+    assert "run folder not found" in result.stderr
+    result = subprocess.run([sys.executable, "-m", "edgedog", "extract", tmp_path, "--set", "bogus=1"],
+                            capture_output=True, text=True)
+    assert result.returncode == 2 and "bogus" in result.stderr
