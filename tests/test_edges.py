@@ -106,3 +106,22 @@ def test_read_only_scenes_cache_in_the_user_cache(box_scene, tmp_path, monkeypat
     run = ensure_edge_maps(scene, CannyDetector(), progress=False)
     assert (tmp_path / "cache") in run.folder.parents
     assert not (box_scene / cache.CACHE_FOLDER).exists()
+
+
+def test_thinning_moves_an_asymmetric_band_to_its_ridge():
+    from edgedog.edges.thin import ridge_mask, thin_edge_map
+
+    x = np.arange(64, dtype=np.float32)
+    # A vertical edge at x = 20 drawn as a band that extends 1 px inwards and 5 px outwards, like a
+    # detector's silhouette response: its centre of mass is 2 px off the ridge.
+    across = np.where(x < 20, np.exp(-((x - 20) / 1.0) ** 2), np.exp(-((x - 20) / 5.0) ** 2))
+    band = np.tile(across, (48, 1)).astype(np.float32)
+    assert abs((band[0] * x).sum() / band[0].sum() - 20) > 1.5
+    ridge = ridge_mask(band)
+    assert np.array_equal(np.nonzero(ridge[10])[0], [20])
+    thin = thin_edge_map(band, sigma=0.7)
+    row = thin[24]
+    assert row.argmax() == 20 and abs(row[20] - 1.0) < 0.02
+    assert abs((row * x).sum() / row.sum() - 20) < 0.05  # symmetric profile around the ridge
+    assert row[17] < 1e-3 and row[23] < 1e-3  # narrow: nothing left of the 5 px outer band
+    assert not thin_edge_map(np.zeros((16, 16), np.float32)).any()

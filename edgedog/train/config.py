@@ -53,6 +53,12 @@ class TrainConfig:
     quats_from_epoch: int = 30
     lr_k: float = 1e-4
 
+    edge_profile: Literal["raw", "thin"] = "raw"
+    """'raw': fit the maps as they are; 'thin': fit their ridge drawn with a narrow Gaussian
+    profile (edgedog.edges.thin), which removes the bias of thick, asymmetric detector bands."""
+    thin_sigma: float = 0.7
+    """Width (px, standard deviation) of the 'thin' profile."""
+
     # --- losses
     edge_threshold: float = 0.5
     """Edge pixels of a map are those >= this value."""
@@ -116,6 +122,8 @@ class TrainConfig:
             raise ConfigError(f"weighting must be one, exp_neg, one_minus, up or exp, got {self.weighting!r}")
         if self.kernel not in ("dog", "gaussian"):
             raise ConfigError(f"kernel must be dog or gaussian, got {self.kernel!r}")
+        if self.edge_profile not in ("raw", "thin"):
+            raise ConfigError(f"edge_profile must be raw or thin, got {self.edge_profile!r}")
         if self.epochs < 1 or self.downscale < 1:
             raise ConfigError("epochs and downscale must be positive")
 

@@ -19,6 +19,7 @@ from tqdm import tqdm
 
 from edgedog.edges.cache import ensure_edge_maps
 from edgedog.edges.registry import make_detector
+from edgedog.edges.thin import thin_edge_map
 from edgedog.errors import InputError
 from edgedog.files import atomic_write, atomic_write_json
 from edgedog.init import initialize
@@ -96,8 +97,12 @@ class Trainer:
         self.raster = RasterConfig(kernel=config.kernel, k_activation=config.k_activation)
         self.detector = self._edge_maps()
         self.cameras = [RasterCamera.from_camera(scene.camera(i)) for i in range(len(scene))]
-        self.targets = [torch.from_numpy(scene.load_edge_map(i, self.detector)) for i in range(len(scene))]
-        masks = [target >= config.edge_threshold for target in self.targets]
+        maps = [scene.load_edge_map(i, self.detector) for i in range(len(scene))]
+        # Edge pixels (for the sampled loss and the projection cull) come from the maps as given.
+        masks = [torch.from_numpy(m >= config.edge_threshold) for m in maps]
+        if config.edge_profile == "thin":
+            maps = [thin_edge_map(m, config.thin_sigma) for m in maps]
+        self.targets = [torch.from_numpy(m) for m in maps]
         self.views = EdgeViews(self.cameras, scene.cameras, masks)
         self.strategy = DensityStrategy(config, self.raster)
         self.controls = Controls(config.keep_ratio, config.weighting)
