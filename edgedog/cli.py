@@ -6,10 +6,23 @@ import argparse
 import sys
 
 from edgedog import __version__
-from edgedog.commands import bench, demo, edges, evaluate, info, init, sfm, train
+from edgedog.commands import (
+    bench,
+    demo,
+    edges,
+    evaluate,
+    export,
+    extract,
+    info,
+    init,
+    make_scene,
+    sfm,
+    studio,
+    train,
+)
 from edgedog.errors import EdgeDogError
 
-COMMANDS = (info, edges, init, sfm, train, evaluate, bench, demo)
+COMMANDS = (info, edges, init, sfm, train, extract, export, evaluate, bench, demo, make_scene, studio)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -151,7 +151,8 @@ def find_ground_truth(scene_root: Path, scan_id: str) -> GroundTruthSource | Non
 
     Searched: `<scene>/gt`, `<scene>/groundtruth`, and `groundtruth/` one and two levels up
     (the EMAP layout keeps `data/<id>/` beside `groundtruth/`). A pre-sampled
-    `<id>_0.005.ply` wins over the CAD files.
+    `<id>_0.005.ply` wins over the CAD files. Failing those, a single `*_0.005.ply` in
+    `<scene>/gt` (a generated scene keeps its ground truth when its folder is renamed).
     """
     candidates = [scene_root / "gt", scene_root / "groundtruth"]
     candidates += [parent / "groundtruth" for parent in list(scene_root.parents)[:2]]
@@ -165,4 +166,7 @@ def find_ground_truth(scene_root: Path, scan_id: str) -> GroundTruthSource | Non
         stats = [s for s in stats if f'"{scan_id}"' in s.read_text()]
         if features and objs and stats:
             return GroundTruthSource(scan_id, obj=objs[0], features=features[0], stats=stats[0])
+    own = sorted((scene_root / "gt").glob(f"*_{GT_SPACING}.ply"))
+    if len(own) == 1:
+        return GroundTruthSource(own[0].name.removesuffix(f"_{GT_SPACING}.ply"), sampled_ply=own[0])
     return None

@@ -1,5 +1,5 @@
 """Shared fixtures: the real datasets in ../shared/data (skipped cleanly when absent) and the
-built-in scene generated once per session."""
+built-in exact box scene generated once per session."""
 
 from __future__ import annotations
 
@@ -36,6 +36,7 @@ def dtu_scene_dir() -> Path:
 
 @pytest.fixture(scope="session")
 def builtin_scene_dir(tmp_path_factory) -> Path:
-    from edgedog.builtin_scene import builtin_scene_path
+    """The exact box scene (50 views at 400 px, "exact" edge maps): known answers for tests."""
+    from edgedog.builtin_scene import write_box_scene
 
-    return builtin_scene_path(tmp_path_factory.mktemp("cache"))
+    return write_box_scene(tmp_path_factory.mktemp("cache") / "box")

@@ -93,8 +93,8 @@ def test_help(args):
 def test_demo_generates_and_describes_the_builtin_scene(tmp_path):
     result = edgedog("demo", "--cache", tmp_path)
     assert result.returncode == 0, result.stderr
-    assert (tmp_path / "scenes" / "box" / "transforms_train.json").is_file()
-    assert "edge maps     exact" in result.stdout
+    assert (tmp_path / "scenes" / "boss" / "transforms_train.json").is_file()
+    assert "edge maps     canny" in result.stdout or "edge maps     pidinet" in result.stdout
 
 
 def test_edges_computes_then_reuses_maps(builtin_scene_dir, tmp_path):
