@@ -1,5 +1,13 @@
 """edgedog.app: EdgeDoG Studio, the desktop trainer and viewer (GLFW + ModernGL + imgui-bundle).
 
-The window, its panels and the training thread live here; GL stays on the main thread and
-the trainer publishes immutable snapshots that the window reads.
+GL and GLFW stay on the main thread; the trainer runs in a worker thread and publishes
+immutable snapshots that the window reads.
+
+- window.py, display.py: GLFW, the GL context, imgui's backends and the frame loop.
+- studio.py: one frame: requests, live controls, 3D view, inspectors, curves, panels.
+- state.py: what the panels edit; script.py: a scripted driver feeding the same state.
+- session.py, worker.py: the scene, its run folders, and the training thread.
+- view3d.py, textures.py: GL drawing; inspection.py, extraction.py, jobs.py: work done off the
+  UI thread; colors.py, layers.py: colour maps and the layer list.
+- layout.py and *_panel.py: the panels.
 """

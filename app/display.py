@@ -1,0 +1,84 @@
+"""GLFW for the studio: the display check, the window with its OpenGL 3.3 core context, the
+DPI scale, and when the user last touched the window. Light to import, so that a missing
+display is reported before anything heavy loads.
+"""
+
+from __future__ import annotations
+
+import time
+
+# imgui_bundle before glfw: it points glfw at the GLFW library it ships.
+from imgui_bundle import imgui  # isort: skip
+import glfw
+from edgedog.renderer.gl.context import GL_VERSION
+
+from edgedog.errors import EdgeDogError
+
+TITLE = "EdgeDoG Studio"
+ACTIVE_SECONDS = 0.5
+"""The window counts as in use this long after the last input (imgui settles hovers)."""
+
+
+class NoDisplayError(EdgeDogError):
+    """No window can be opened here (no display, or no OpenGL 3.3 core context)."""
+
+
+def _no_window(reason: str) -> NoDisplayError:
+    return NoDisplayError(f"studio: cannot open a window ({reason}); train headless instead: "
+                          "edgedog train SCENE --out RUN")
+
+
+def init_glfw() -> None:
+    """Initialise GLFW, or raise NoDisplayError naming why not (GLFW's own message)."""
+    errors: list[str] = []
+    glfw.set_error_callback(lambda code, text: errors.append(text.decode(errors="replace")))
+    if not glfw.init():
+        raise _no_window(errors[-1] if errors else "GLFW cannot start")
+
+
+def open_window(width: int, height: int):
+    """A window of `width` x `height` screen coordinates with a current OpenGL 3.3 core context
+    (GLFW must be initialised)."""
+    hints = ((glfw.CONTEXT_VERSION_MAJOR, GL_VERSION // 100),
+             (glfw.CONTEXT_VERSION_MINOR, GL_VERSION // 10 % 10),
+             (glfw.OPENGL_PROFILE, glfw.OPENGL_CORE_PROFILE), (glfw.OPENGL_FORWARD_COMPAT, True),
+             (glfw.SCALE_TO_MONITOR, True))
+    for hint, value in hints:
+        glfw.window_hint(hint, value)
+    window = glfw.create_window(width, height, TITLE, None, None)
+    if not window:
+        raise _no_window(f"no OpenGL {GL_VERSION / 100:.1f} core context")
+    glfw.make_context_current(window)
+    glfw.swap_interval(1)
+    return window
+
+
+def scale_for_dpi(window) -> None:
+    """Scale imgui's sizes and fonts by the monitor's content scale, less what the framebuffer
+    already scales (macOS: window coordinates are points, the framebuffer has the pixels)."""
+    content = max(glfw.get_window_content_scale(window))
+    window_width = glfw.get_window_size(window)[0]
+    pixels_per_point = glfw.get_framebuffer_size(window)[0] / window_width if window_width else 1.0
+    scale = content / pixels_per_point
+    style = imgui.get_style()
+    style.scale_all_sizes(scale)
+    style.font_scale_dpi = scale
+
+
+class InputWatch:
+    """When the user last touched the window. Installed before imgui's backend, which chains
+    these callbacks after its own."""
+
+    def __init__(self, window):
+        self.last = time.perf_counter()
+        for install in (glfw.set_cursor_pos_callback, glfw.set_mouse_button_callback,
+                        glfw.set_scroll_callback, glfw.set_key_callback, glfw.set_char_callback,
+                        glfw.set_window_size_callback, glfw.set_window_focus_callback):
+            install(window, self._touched)
+
+    def _touched(self, *_event) -> None:
+        self.last = time.perf_counter()
+
+    @property
+    def active(self) -> bool:
+        return time.perf_counter() - self.last < ACTIVE_SECONDS

@@ -1,0 +1,60 @@
+"""Curves from a snapshot, scored against the ground truth and exported, off the UI thread.
+
+The snapshot goes through `edgedog extract`'s own pipeline (filters, grouping, fitting) via a
+scratch run folder, so the studio's curves are the ones the command line would give.
+"""
+
+from __future__ import annotations
+
+import tempfile
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from edgedog.curve_files import EdgeCurves, write_edges
+from edgedog.curves.config import ExtractConfig
+from edgedog.curves.extract import extract_run
+from edgedog.metrics import evaluate
+from edgedog.scenes import Scene
+from edgedog.train.export import write_primitives
+
+EXPORT_FORMATS = ("ply", "obj", "json")
+
+
+@dataclass(frozen=True)
+class Extraction:
+    """Curves of one snapshot.
+
+    Attributes:
+        step: the training step of the snapshot; elapsed: its time in the run (seconds).
+        counts: primitives left after each filter, chains, lines, Béziers.
+        fscore: threshold in mm -> F-score in %, when the scene has ground truth and curves.
+        written: the files exported with it.
+    """
+
+    step: int
+    elapsed: float
+    curves: EdgeCurves
+    counts: dict[str, int]
+    fscore: dict[int, float] | None = None
+    written: tuple[Path, ...] = field(default_factory=tuple)
+
+
+def export_path(run_dir: Path, step: int, fmt: str) -> Path:
+    """Where an export of the curves at `step` goes: <run>/exports/curves_step<step>.<fmt>."""
+    return run_dir / "exports" / f"curves_step{step:06d}.{fmt}"
+
+
+def extract_snapshot(snapshot, elapsed: float, scene: Scene, detector: str, run_dir: Path,
+                     formats: Sequence[str] = (), config: ExtractConfig = ExtractConfig()) -> Extraction:
+    """Extract curves from `snapshot`, score them when the scene has ground truth, and write
+    them in each of `formats` (see `export_path`)."""
+    with tempfile.TemporaryDirectory(prefix="edgedog-studio-") as scratch:
+        write_primitives(Path(scratch) / "primitives.ply", snapshot)
+        result = extract_run(scratch, config, scene, detector)
+    fscore = None
+    samples = result.curves.transformed(scene.world_to_gt).sample()
+    if scene.ground_truth is not None and len(samples):  # curves all shorter than 5 mm give none
+        fscore = evaluate(samples, scene.ground_truth.load()).fscore
+    written = tuple(write_edges(export_path(run_dir, snapshot.step, fmt), result.curves) for fmt in formats)
+    return Extraction(snapshot.step, elapsed, result.curves, result.counts, fscore, written)

@@ -1,0 +1,67 @@
+"""A helper thread for work the UI must not wait for (inspector renders, curve extraction)."""
+
+from __future__ import annotations
+
+import threading
+import traceback
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+
+@dataclass(frozen=True)
+class Done:
+    """A finished job: its `key`, and its `value` or the `error` line it raised."""
+
+    key: Any
+    value: Any = None
+    error: str | None = None
+
+
+class BackgroundJob:
+    """Runs one callable at a time in a daemon thread; the UI polls for the outcome.
+
+    Attributes:
+        key: what the running (or last) job was submitted for, e.g. a snapshot key.
+    """
+
+    def __init__(self, name: str):
+        self.name = name
+        self.key: Any = None
+        self._thread: threading.Thread | None = None
+        self._done: Done | None = None
+        self._lock = threading.Lock()
+
+    @property
+    def busy(self) -> bool:
+        return self._thread is not None and self._thread.is_alive()
+
+    def submit(self, key: Any, function: Callable[[], Any]) -> bool:
+        """Start `function()` unless a job is running; returns whether it started."""
+        if self.busy:
+            return False
+        self.key = key
+
+        def run() -> None:
+            try:
+                done = Done(key, function())
+            except Exception as error:  # reported in the UI's status line
+                traceback.print_exc()
+                done = Done(key, error=f"{type(error).__name__}: {error}")
+            with self._lock:
+                self._done = done
+
+        self._thread = threading.Thread(target=run, name=f"edgedog-{self.name}", daemon=True)
+        self._thread.start()
+        return True
+
+    def poll(self) -> Done | None:
+        """The outcome of the last job once it has finished (each outcome is returned once)."""
+        with self._lock:
+            done, self._done = self._done, None
+        return done
+
+    def wait(self, timeout: float) -> None:
+        """Wait for the running job (if any), at most `timeout` seconds."""
+        if self._thread is not None:
+            self._thread.join(timeout)

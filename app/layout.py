@@ -1,0 +1,57 @@
+"""Where the panels go: a fixed tiling of the window that follows its size and DPI scale.
+
+    +----------+----------------------+---------+
+    | controls |       3D view        |  plots  |
+    |          +----------------------+---------+
+    |          |        inspectors              |
+    +----------+--------------------------------+
+    | status line                               |
+    +-------------------------------------------+
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from imgui_bundle import imgui
+
+CONTROLS_WIDTH, PLOTS_WIDTH = 330, 360
+"""In unscaled points (times the DPI scale)."""
+INSPECTORS_SHARE = 0.36
+"""Of the height under the 3D view and plots."""
+PANEL_FLAGS = imgui.WindowFlags_.no_move | imgui.WindowFlags_.no_resize | imgui.WindowFlags_.no_collapse
+
+
+@dataclass(frozen=True)
+class Area:
+    """A panel's rectangle in points: top-left (x, y), width, height."""
+
+    x: float
+    y: float
+    width: float
+    height: float
+
+
+def studio_layout() -> dict[str, Area]:
+    """The panels' areas for the current display size."""
+    width, height = imgui.get_io().display_size
+    scale = imgui.get_style().font_scale_dpi
+    status = imgui.get_frame_height_with_spacing() + 2 * imgui.get_style().window_padding.y
+    controls, plots = CONTROLS_WIDTH * scale, PLOTS_WIDTH * scale
+    body = height - status
+    inspectors = round(INSPECTORS_SHARE * body)
+    top = body - inspectors
+    return {
+        "controls": Area(0, 0, controls, body),
+        "view": Area(controls, 0, width - controls - plots, top),
+        "plots": Area(width - plots, 0, plots, top),
+        "inspectors": Area(controls, top, width - controls, inspectors),
+        "status": Area(0, body, width, status),
+    }
+
+
+def begin(title: str, area: Area, flags: int = 0) -> bool:
+    """Begin a panel window pinned to `area` (end it with imgui.end() whatever this returns)."""
+    imgui.set_next_window_pos(imgui.ImVec2(area.x, area.y))
+    imgui.set_next_window_size(imgui.ImVec2(area.width, area.height))
+    return imgui.begin(title, None, PANEL_FLAGS | flags)[0]

@@ -1,0 +1,129 @@
+"""A scripted UI driver: actions fed to the UI state between frames, as a user's clicks would be,
+for tests and demos (`edgedog studio --script FILE`).
+
+The script is JSON: {"report": "report.json", "actions": [...]}, each action one of
+    {"wait": seconds}
+    {"set": {"live.keep_ratio": 0.7, "display.layers.L0": false}}   dotted paths into UIState
+    {"request": "export", "format": "obj"}                          a UIState request and its args
+    {"expect": {"controls.weighting": "up", "steps": [">", 10]}, "timeout": 10}
+        wait until every probe (Studio.probe) matches: a value, or [op, value] with op one of
+        > >= < <= !=; fails the script after `timeout` seconds (default 10).
+    {"mark": "name"}                                                  record the probes now
+A failed expectation closes the window; the report (probes, failure, closing time) is written
+when the window closes and the command exits 1 if the script failed.
+"""
+
+from __future__ import annotations
+
+import json
+import operator
+import time
+from pathlib import Path
+
+from edgedog.errors import InputError
+from edgedog.files import atomic_write_json, read_json
+
+COMPARISONS = {">": operator.gt, ">=": operator.ge, "<": operator.lt, "<=": operator.le, "!=": operator.ne}
+DEFAULT_TIMEOUT = 10.0
+FLOAT_TOLERANCE = 1e-6
+
+
+def matches(actual, expected) -> bool:
+    """Whether a probe value meets an expectation (a value, or [op, value])."""
+    if isinstance(expected, list) and len(expected) == 2 and expected[0] in COMPARISONS:
+        return actual is not None and COMPARISONS[expected[0]](actual, expected[1])
+    if isinstance(expected, float) and isinstance(actual, (int, float)):
+        return abs(actual - expected) <= FLOAT_TOLERANCE
+    return actual == expected
+
+
+def assign(root, path: str, value) -> None:
+    """Set the attribute (or dict item) at dotted `path` under `root`."""
+    *parents, last = path.split(".")
+    target = root
+    for name in parents:
+        target = target[name] if isinstance(target, dict) else getattr(target, name)
+    if isinstance(target, dict):
+        target[last] = value
+    elif hasattr(target, last):
+        setattr(target, last, value)
+    else:
+        raise AttributeError(f"the UI state has no {path!r}")
+
+
+class ScriptDriver:
+    """Runs a script's actions in order, one or more per frame."""
+
+    def __init__(self, script: dict, clock=time.monotonic):
+        self.actions: list[dict] = list(script.get("actions", []))
+        self.report_path = Path(script["report"]) if script.get("report") else None
+        self.clock = clock
+        self.index = 0
+        self.failure: str | None = None
+        self.log: list[dict] = []
+        self.marks: dict[str, dict] = {}
+        self._origin = self._since = clock()
+
+    @classmethod
+    def load(cls, path: Path) -> ScriptDriver:
+        script = read_json(path)
+        if not isinstance(script, dict) or not isinstance(script.get("actions"), list):
+            raise InputError(path, 'expected {"actions": [...]} (see edgedog.app.script)')
+        return cls(script)
+
+    @property
+    def finished(self) -> bool:
+        return self.failure is not None or self.index >= len(self.actions)
+
+    def tick(self, studio) -> None:
+        """Run every action that is due; stop at one that is still waiting."""
+        while not self.finished:
+            action = self.actions[self.index]
+            try:
+                done = self._run(action, studio)
+            except Exception as error:  # a bad script must fail the run, not the window
+                self._fail(studio, f"action {self.index} {action}: {type(error).__name__}: {error}")
+                return
+            if not done:
+                return
+            self.log.append({"action": action, "at": round(self.clock() - self._origin, 3)})
+            self.index += 1
+            self._since = self.clock()
+            if "request" in action:
+                return  # one request per frame: a screenshot shows the frame as it was asked for
+
+    def _run(self, action: dict, studio) -> bool:
+        waited = self.clock() - self._since
+        if "wait" in action:
+            return waited >= action["wait"]
+        if "set" in action:
+            for path, value in action["set"].items():
+                assign(studio.state, path, value)
+            return True
+        if "request" in action:
+            args = {key: value for key, value in action.items() if key != "request"}
+            studio.state.request(action["request"], **args)
+            return True
+        if "mark" in action:
+            self.marks[action["mark"]] = {"at": self.clock() - self._origin, **studio.probe()}
+            return True
+        if "expect" in action:
+            probe = studio.probe()
+            missed = {k: probe.get(k) for k, v in action["expect"].items() if not matches(probe.get(k), v)}
+            if missed and waited > action.get("timeout", DEFAULT_TIMEOUT):
+                self._fail(studio, f"action {self.index}: expected {action['expect']}, got {missed}")
+            return not missed
+        raise ValueError("unknown action")
+
+    def _fail(self, studio, message: str) -> None:
+        self.failure = message
+        studio.state.request("close")
+
+    def write_report(self, studio) -> None:
+        """The report: success, failure, every action's time, the marks, the final probes and how
+        long closing took."""
+        if self.report_path is None:
+            return
+        report = {"ok": self.failure is None and self.finished, "failure": self.failure, "log": self.log,
+                  "marks": self.marks, "probe": studio.probe(), "stop_seconds": studio.stop_seconds}
+        atomic_write_json(self.report_path, json.loads(json.dumps(report, default=str)))

@@ -1,0 +1,106 @@
+"""The studio's UI state: what the user has set, and the actions the user asked for.
+
+Panels (and the scripted driver) only write here; `Studio` reads it each frame and acts, so a
+click and a scripted action take the same path.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import typing
+from dataclasses import dataclass, field
+from typing import Any
+
+from edgedog.train.config import TrainConfig, Weighting
+
+WEIGHTINGS: tuple[str, ...] = typing.get_args(Weighting)
+PRESETS = ("paper", "fast")
+KERNELS = ("dog", "gaussian")
+COLOR_MODES = ("white", "opacity", "DoG a", "DoG t")
+"""What the splats are coloured by: nothing, their opacity, or the inner scale a or the
+surround ratio t of their DoG shape k."""
+
+
+@dataclass
+class LiveSettings:
+    """Applied to the running trainer at its next step boundary."""
+
+    keep_ratio: float
+    weighting: str
+
+
+@dataclass
+class RestartSettings:
+    """Applied when a run starts or restarts (a running trainer cannot change them)."""
+
+    preset: str
+    epochs: int
+    k_init: tuple[float, float]
+    kernel: str
+    pixel_uncertainty: bool
+    primitive_uncertainty: bool
+
+    @classmethod
+    def from_config(cls, preset: str, config: TrainConfig) -> RestartSettings:
+        return cls(preset, config.epochs, tuple(config.k_init), config.kernel, config.pixel_uncertainty,
+                   config.primitive_uncertainty)
+
+    def apply(self, base: TrainConfig, live: LiveSettings) -> TrainConfig:
+        """`base` (the preset with the command line's overrides) with these and the live settings."""
+        return dataclasses.replace(base, epochs=self.epochs, k_init=tuple(self.k_init), kernel=self.kernel,
+                                   pixel_uncertainty=self.pixel_uncertainty,
+                                   primitive_uncertainty=self.primitive_uncertainty,
+                                   keep_ratio=live.keep_ratio, weighting=live.weighting)
+
+
+@dataclass
+class Display:
+    """What the 3D view shows."""
+
+    splats: bool = True
+    edges: bool = True
+    cameras: bool = True
+    ground_truth: bool = True
+    pruned: bool = True
+    color_by: str = "white"
+    layers: dict[str, bool] = field(default_factory=lambda: {"L0": True})
+    """Multi-granularity layers by name -> shown."""
+
+
+@dataclass(frozen=True)
+class Request:
+    """An action asked for: "open" (path), "start", "pause", "resume", "restart", "extract",
+    "export" (format), "snap" (to the selected view), "screenshot" (path), "close"."""
+
+    name: str
+    args: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass
+class UIState:
+    """Everything the panels edit."""
+
+    live: LiveSettings
+    restart: RestartSettings
+    display: Display = field(default_factory=Display)
+    view: int = 0
+    """The selected training view (inspectors, snapping)."""
+    auto_extract: bool = False
+    """Extract curves from the latest snapshot every `auto_extract_seconds`."""
+    auto_extract_seconds: float = 20.0
+    status: str = ""
+    """The status line: the last thing done (e.g. the path written)."""
+    requests: list[Request] = field(default_factory=list)
+
+    @classmethod
+    def for_config(cls, preset: str, config: TrainConfig) -> UIState:
+        live = LiveSettings(config.keep_ratio, config.weighting)
+        return cls(live, RestartSettings.from_config(preset, config))
+
+    def request(self, name: str, **args) -> None:
+        self.requests.append(Request(name, args))
+
+    def take_requests(self) -> list[Request]:
+        """The requests made since the last call, oldest first."""
+        taken, self.requests = self.requests, []
+        return taken

@@ -1,0 +1,101 @@
+"""The studio window: a ModernGL context in the GLFW window and imgui-bundle's GLFW + OpenGL 3
+backends, all on the main thread, and the frame loop around `Studio.frame`.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import time
+from pathlib import Path
+
+# imgui_bundle before glfw: it points glfw at the GLFW library it ships.
+from imgui_bundle import imgui, implot  # isort: skip
+import cv2
+import glfw
+import moderngl
+import numpy as np
+from edgedog.app.display import InputWatch, init_glfw, open_window, scale_for_dpi
+from edgedog.app.script import ScriptDriver
+from edgedog.app.session import Session
+from edgedog.app.studio import Studio
+from edgedog.renderer.gl.context import GL_VERSION, window_context
+
+ACTIVE_FPS, IDLE_FPS = 30, 2
+"""Frame rates while the user interacts, and otherwise (the rate snapshots come at, see
+worker.PUBLISH_EVERY). With a software OpenGL a frame costs tens of milliseconds of CPU, much
+of it holding the GIL the training thread needs: idle frames are kept rare so that training
+keeps its speed, and input wakes the loop at once."""
+BACKGROUND = (0.08, 0.08, 0.09, 1.0)
+
+
+def save_screenshot(ctx: moderngl.Context, path: Path, width: int, height: int) -> Path:
+    """The window's back buffer (the frame just drawn) as a PNG."""
+    pixels = np.frombuffer(ctx.screen.read(viewport=(0, 0, width, height), components=3), np.uint8)
+    image = pixels.reshape(height, width, 3)[::-1, :, ::-1]  # bottom-up RGB -> top-down BGR
+    path.parent.mkdir(parents=True, exist_ok=True)
+    if not cv2.imwrite(str(path), image):
+        raise OSError(f"{path}: cannot write the screenshot")
+    return path
+
+
+def _loop(window, ctx: moderngl.Context, studio: Studio, driver: ScriptDriver | None, watch: InputWatch
+          ) -> None:
+    while not glfw.window_should_close(window):
+        started = time.perf_counter()
+        glfw.poll_events()
+        if driver is not None:
+            driver.tick(studio)
+        imgui.backends.opengl3_new_frame()
+        imgui.backends.glfw_new_frame()
+        imgui.new_frame()
+        requests = studio.frame()
+        imgui.render()
+        width, height = glfw.get_framebuffer_size(window)
+        ctx.screen.viewport = (0, 0, width, height)
+        ctx.screen.use()
+        ctx.screen.clear(*BACKGROUND)
+        imgui.backends.opengl3_render_draw_data(imgui.get_draw_data())
+        for request in requests:
+            if request.name == "screenshot":
+                save_screenshot(ctx, Path(request.args["path"]), width, height)
+            elif request.name == "close":
+                glfw.set_window_should_close(window, True)
+        glfw.swap_buffers(window)
+        time.sleep(max(0.0, 1 / ACTIVE_FPS - (time.perf_counter() - started)))
+        fps = ACTIVE_FPS if watch.active else IDLE_FPS
+        glfw.wait_events_timeout(max(0.0, 1 / fps - (time.perf_counter() - started)))
+
+
+def run_studio(session: Session, runs_root: Path | None = None, script: Path | None = None,
+               size: tuple[int, int] = (1600, 1000)) -> int:
+    """Open the window on `session` and run until it is closed; returns the exit status (1 when
+    a script failed). Closing stops training within a second."""
+    driver = ScriptDriver.load(script) if script is not None else None
+    init_glfw()
+    try:
+        window = open_window(*size)
+        ctx = window_context()
+        imgui.create_context()
+        implot.create_context()
+        imgui.get_io().set_ini_filename(None)  # the layout is fixed: nothing to remember
+        scale_for_dpi(window)
+        watch = InputWatch(window)
+        imgui.backends.glfw_init_for_opengl(ctypes.cast(window, ctypes.c_void_p).value, True)
+        imgui.backends.opengl3_init(f"#version {GL_VERSION}")
+        studio = Studio(ctx, session, runs_root)
+        glfw.set_drop_callback(window, lambda _window, paths: studio.state.request("open", path=paths[0]))
+        try:
+            _loop(window, ctx, studio, driver, watch)
+        finally:
+            studio.close()
+            imgui.backends.opengl3_shutdown()
+            imgui.backends.glfw_shutdown()
+            implot.destroy_context()
+            imgui.destroy_context()
+            ctx.release()
+        if driver is not None:
+            driver.write_report(studio)
+            return 0 if driver.failure is None and driver.finished else 1
+        return 0
+    finally:
+        glfw.terminate()

@@ -1,0 +1,55 @@
+"""`edgedog studio [SCENE | RUN]`: the desktop studio, training live with a 3D view, inspectors
+and plots."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from edgedog.files import default_cache
+
+
+def _size(text: str) -> tuple[int, int]:
+    width, sep, height = text.partition("x")
+    if not sep or not width.isdigit() or not height.isdigit() or int(width) < 320 or int(height) < 240:
+        raise argparse.ArgumentTypeError(f"expected WIDTHxHEIGHT of at least 320x240, got {text!r}")
+    return int(width), int(height)
+
+
+def add_parser(subparsers) -> None:
+    parser = subparsers.add_parser(
+        "studio", help="the desktop studio: train live, inspect views, extract and export curves",
+        description="Open a scene (training into a new run folder) or a run folder (resuming it) in "
+                    "a window: live DoG splats, curves, cameras and ground truth in 3D; the selected "
+                    "view's image, edge map, render, depth, Up and w(Up); loss, primitive and "
+                    "F-score plots; run controls and curve export. Needs a display; without one "
+                    "use `edgedog train`.")
+    parser.add_argument("path", nargs="?", type=Path, metavar="SCENE | RUN",
+                        help="scene folder, or run folder to resume (default: the built-in scene)")
+    parser.add_argument("--preset", choices=("paper", "fast"), default="fast",
+                        help="settings of new runs (default fast: 100 epochs at half resolution)")
+    parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                        help="override a setting of edgedog.train.config.TrainConfig for new runs "
+                             "(repeatable; a resumed run keeps its own)")
+    parser.add_argument("--runs", type=Path, default=None, metavar="DIR",
+                        help="where new run folders go (default ./runs; beside RUN for a run folder)")
+    parser.add_argument("--cache", type=Path, default=None, metavar="DIR",
+                        help=f"folder for the built-in scene (default: $EDGEDOG_CACHE or {default_cache()})")
+    parser.add_argument("--size", type=_size, default=(1600, 1000), metavar="WxH",
+                        help="window size in screen coordinates (default 1600x1000)")
+    parser.add_argument("--script", type=Path, default=None, metavar="FILE",
+                        help="drive the UI from a JSON script (see edgedog.app.script), for tests and demos")
+    parser.set_defaults(run=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from edgedog.app.display import init_glfw
+
+    init_glfw()  # no display: fail before loading (or generating) anything
+    from edgedog.app.session import Session
+    from edgedog.app.window import run_studio
+    from edgedog.builtin_scene import builtin_scene_path
+
+    path = args.path if args.path is not None else builtin_scene_path(args.cache, progress=True)
+    session = Session.open(path, args.runs, args.preset, args.overrides)
+    return run_studio(session, args.runs, args.script, args.size)
