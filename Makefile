@@ -39,8 +39,9 @@ $(VENV)/.ext-built: $(VENV)/.deps-installed $(EXT_SOURCES)
 
 build: $(VENV)/.ext-built
 
+# With a display, the studio opens on the built-in scene; without one, the same job runs headless.
 demo: setup
-	$(BIN)/edgedog demo
+	@if [ -n "$$DISPLAY" ] || [ -n "$$WAYLAND_DISPLAY" ]; then $(BIN)/edgedog studio; else $(BIN)/edgedog demo; fi
 
 test: setup
 	$(BIN)/python -m pytest -q
