@@ -11,7 +11,7 @@ import typing
 from dataclasses import dataclass, field
 from typing import Any
 
-from edgedog.train.config import TrainConfig, Weighting
+from edgedog.train.config import TrainConfig, Weighting, with_epochs
 
 WEIGHTINGS: tuple[str, ...] = typing.get_args(Weighting)
 PRESETS = ("paper", "fast")
@@ -47,7 +47,9 @@ class RestartSettings:
 
     def apply(self, base: TrainConfig, live: LiveSettings) -> TrainConfig:
         """`base` (the preset with the command line's overrides) with these and the live settings."""
-        return dataclasses.replace(base, epochs=self.epochs, k_init=tuple(self.k_init), kernel=self.kernel,
+        # A new epoch count stretches the preset's whole schedule, not only its end.
+        return dataclasses.replace(with_epochs(base, self.epochs), k_init=tuple(self.k_init),
+                                   kernel=self.kernel,
                                    pixel_uncertainty=self.pixel_uncertainty,
                                    primitive_uncertainty=self.primitive_uncertainty,
                                    keep_ratio=live.keep_ratio, weighting=live.weighting)

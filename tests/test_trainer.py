@@ -11,7 +11,7 @@ import torch
 from edgedog.errors import ConfigError
 from edgedog.scenes import load_scene
 from edgedog.train import losses
-from edgedog.train.config import TrainConfig, preset, with_overrides
+from edgedog.train.config import TrainConfig, preset, with_epochs, with_overrides
 from edgedog.train.model import GROUPS
 from edgedog.train.trainer import Trainer, _finite_grads
 
@@ -127,3 +127,13 @@ def test_config_overrides():
     assert fast.epochs == 100 and fast.downscale == 2 and fast.duplicate_epochs[0] == 10
 
 
+
+
+def test_with_epochs_stretches_the_whole_schedule():
+    paper = preset("paper")
+    half = with_epochs(paper, 200)
+    assert half.epochs == 200 and half.fisher_every == 25 and half.direction_from_epoch == 125
+    assert half.duplicate_epochs[0] == 20 and half.cull_opacity_epochs == (62, 155)
+    assert with_epochs(paper, 400) == paper
+    with pytest.raises(ConfigError):
+        with_epochs(paper, 0)

@@ -143,6 +143,16 @@ def _scale_epochs(config: TrainConfig, factor: float) -> dict:
     return changes
 
 
+def with_epochs(config: TrainConfig, epochs: int) -> TrainConfig:
+    """The config's whole schedule (decays, starts, density-control events, Fisher period,
+    checkpoints) stretched or compressed to `epochs`."""
+    if epochs < 1:
+        raise ConfigError(f"epochs must be positive, got {epochs}")
+    if epochs == config.epochs:
+        return config
+    return dataclasses.replace(config, **{**_scale_epochs(config, epochs / config.epochs), "epochs": epochs})
+
+
 def preset(name: str) -> TrainConfig:
     """'paper': EdgeGaussians' 400 epochs at full resolution. 'fast': the same schedule
     compressed to 100 epochs at half resolution."""
@@ -195,4 +205,4 @@ def from_dict(values: dict) -> TrainConfig:
                           for k, v in values.items() if k in fields})
 
 
-__all__ = ["TrainConfig", "from_dict", "preset", "to_dict", "with_overrides"]
+__all__ = ["TrainConfig", "from_dict", "preset", "to_dict", "with_epochs", "with_overrides"]
