@@ -20,6 +20,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
+from edgedog.curves.bezier import bezier_derivatives, bezier_points
+
 SAMPLE_SPACING = 0.005
 THRESHOLDS = (0.005, 0.01, 0.02)
 VOXELS_PER_AXIS = 256
@@ -66,22 +68,12 @@ def sample_polyline(points: np.ndarray, spacing: float = SAMPLE_SPACING) -> np.n
     return points[seg] + frac[:, None] * (points[seg + 1] - points[seg])
 
 
-def _bezier_points(ctrl: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """Cubic Bézier with control points ctrl (4, 3) evaluated at t (n,); returns (n, 3)."""
-    t = t[:, None]
-    u = 1.0 - t
-    return u**3 * ctrl[0] + 3 * u**2 * t * ctrl[1] + 3 * u * t**2 * ctrl[2] + t**3 * ctrl[3]
-
-
 def _bezier_arclength(ctrl: np.ndarray) -> float:
     """Arc length of a cubic Bézier (4, 3) by composite Gauss-Legendre quadrature of |B'(t)|."""
     edges = np.linspace(0.0, 1.0, _GL_SUBINTERVALS + 1)
     half = 0.5 * np.diff(edges)
     t = ((edges[:-1] + edges[1:]) * 0.5)[:, None] + half[:, None] * _GL_NODES  # (S, 8)
-    t = t.ravel()[:, None]
-    u = 1.0 - t
-    d = ctrl[1:] - ctrl[:-1]  # (3, 3): B'(t) = 3 (u^2 d0 + 2ut d1 + t^2 d2)
-    speed = np.linalg.norm(3.0 * (u**2 * d[0] + 2.0 * u * t * d[1] + t**2 * d[2]), axis=1)
+    speed = np.linalg.norm(bezier_derivatives(ctrl, t.ravel())[0], axis=1)
     return float(np.sum(speed.reshape(_GL_SUBINTERVALS, -1) * _GL_WEIGHTS * half[:, None]))
 
 
@@ -93,7 +85,7 @@ def sample_cubic_bezier(ctrl: np.ndarray, spacing: float = SAMPLE_SPACING) -> np
     """
     ctrl = np.asarray(ctrl, dtype=np.float64).reshape(4, 3)
     n = int(_bezier_arclength(ctrl) // spacing)
-    return _bezier_points(ctrl, np.linspace(0.0, 1.0, n))
+    return bezier_points(ctrl, np.linspace(0.0, 1.0, n))
 
 
 def voxel_mean(
