@@ -10,42 +10,16 @@ from __future__ import annotations
 
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 from edgedog.app.worker import TrainingWorker
 
 from edgedog.curve_files import EdgeCurves
-from edgedog.errors import InputError
-from edgedog.files import atomic_write_json, read_json
 from edgedog.scenes import Scene, load_scene
-from edgedog.train.config import TrainConfig, from_dict, preset, to_dict, with_overrides
+from edgedog.train.config import TrainConfig, preset, with_overrides
+from edgedog.train.run_folder import RUN_CONFIG, RunFolder, read_run, write_run
 from edgedog.train.trainer import Trainer
-
-RUN_CONFIG = "config.json"
-
-
-@dataclass(frozen=True)
-class RunFolder:
-    """A run folder's config.json: the scene it trains on, the preset and the full config."""
-
-    path: Path
-    scene: Path
-    preset: str
-    config: TrainConfig
-
-
-def read_run(path: Path) -> RunFolder:
-    data = read_json(path / RUN_CONFIG)
-    if not isinstance(data, dict) or not {"scene", "config"} <= data.keys():
-        raise InputError(path / RUN_CONFIG, "expected 'scene' and 'config' keys (written by edgedog train)")
-    return RunFolder(path, Path(data["scene"]), data.get("preset", "paper"), from_dict(data["config"]))
-
-
-def write_run(run: RunFolder) -> None:
-    atomic_write_json(run.path / RUN_CONFIG, {"scene": str(run.scene), "preset": run.preset,
-                                              "config": to_dict(run.config)})
 
 
 def new_run_dir(root: Path, name: str) -> Path:

@@ -23,7 +23,8 @@ def test_component_rows_cover_every_combination_once():
     combos = {(r.changes["kernel"], r.changes["pixel_uncertainty"], r.changes["primitive_uncertainty"])
               for r in rows}
     assert len(rows) == len(combos) == 8
-    assert rows[0].changes == {"kernel": "gaussian", "pixel_uncertainty": False, "primitive_uncertainty": False}
+    assert rows[0].changes == {"kernel": "gaussian", "pixel_uncertainty": False,
+                               "primitive_uncertainty": False}
     assert rows[-1].label == "full EdgeDoG" and rows[-1].changes["kernel"] == "dog"
     assert [r.changes["weighting"] for r in weighting_rows()] == ["one", "exp_neg", "one_minus", "up", "exp"]
 
@@ -44,7 +45,7 @@ def test_weighting_table_trains_scores_and_reuses_its_runs(builtin_scene_dir, tm
                                opacity_from_epoch=0, scales_from_epoch=0,
                                cull_projection_epochs=(), cull_opacity_epochs=(), fisher_every=1,
                                checkpoint_every=4, init_side=0.8)
-    results = run_ablation(builtin_scene_dir, tmp_path, base, (WEIGHTING,), progress=False)
+    results = run_ablation(builtin_scene_dir, tmp_path, "fast", base, (WEIGHTING,), progress=False)
     assert [r["table"] for r in results] == [WEIGHTING] * 5
     runs = sorted(p.name for p in tmp_path.iterdir() if p.is_dir())
     assert len(runs) == 5 and "dog_nopix_fisher" in runs  # w = 1 is the run without the term
@@ -57,7 +58,7 @@ def test_weighting_table_trains_scores_and_reuses_its_runs(builtin_scene_dir, tm
     table = (tmp_path / "ablation.md").read_text()
     assert table.count("| w = ") == 5 and COMPONENTS not in table
     stamps = {run: (tmp_path / run / "log.json").stat().st_mtime_ns for run in runs}
-    again = run_ablation(builtin_scene_dir, tmp_path, base, (WEIGHTING,), progress=False)
+    again = run_ablation(builtin_scene_dir, tmp_path, "fast", base, (WEIGHTING,), progress=False)
     assert again == results
     assert stamps == {run: (tmp_path / run / "log.json").stat().st_mtime_ns for run in runs}
     assert markdown(again) == table

@@ -19,7 +19,7 @@ import torch
 from edgedog.app.extraction import export_path, extract_snapshot
 from edgedog.app.inspection import inspect_view, snapshot_primitives
 from edgedog.app.script import ScriptDriver, assign, matches
-from edgedog.app.session import RUN_CONFIG, Session, read_run
+from edgedog.app.session import Session
 from edgedog.app.state import Display, UIState
 from edgedog.app.view3d import View3D
 from edgedog.app.worker import FAILED, FINISHED, PAUSED, STOPPED, TRAINING, Published, TrainingWorker
@@ -33,6 +33,7 @@ from edgedog.curve_files import read_edges
 from edgedog.scenes import load_scene
 from edgedog.train import losses
 from edgedog.train.config import preset
+from edgedog.train.run_folder import RUN_CONFIG, read_run
 from edgedog.train.trainer import CHECKPOINT, Controls, Snapshot, Trainer
 
 

@@ -14,7 +14,8 @@ from pathlib import Path
 
 from edgedog.errors import InputError
 from edgedog.files import atomic_write_bytes, atomic_write_json, read_json
-from edgedog.train.config import TrainConfig, from_dict, to_dict
+from edgedog.train.config import TrainConfig
+from edgedog.train.run_folder import RUN_CONFIG, RunFolder, read_run, write_run
 
 COMPONENTS = "components"
 WEIGHTING = "weighting"
@@ -73,21 +74,19 @@ def run_name(config: TrainConfig) -> str:
     return "_".join(parts)
 
 
-def train_and_extract(scene_path: Path, config: TrainConfig, folder: Path,
-                      progress: bool) -> tuple[dict, dict]:
-    """Train (or resume, or reuse a finished) run in `folder`, then extract and score its curves;
-    returns its log.json and extraction report."""
+def train_and_extract(run: RunFolder, progress: bool) -> tuple[dict, dict]:
+    """Train (or resume, or reuse a finished) `run`, then extract and score its curves; returns
+    its log.json and extraction report."""
     from edgedog.curves.report import REPORT, extract_with_report
     from edgedog.scenes import load_scene
     from edgedog.train.trainer import Trainer
 
-    config_path = folder / "config.json"
-    if config_path.is_file() and from_dict(read_json(config_path)["config"]) != config:
+    folder, config = run.path, run.config
+    if (folder / RUN_CONFIG).is_file() and read_run(folder).config != config:
         raise InputError(folder, "holds a run with another configuration; choose another --out")
-    scene = load_scene(scene_path, downscale=config.downscale)
+    scene = load_scene(run.scene, downscale=config.downscale)
     if not (folder / "log.json").is_file():
-        folder.mkdir(parents=True, exist_ok=True)
-        atomic_write_json(config_path, {"scene": str(scene_path.resolve()), "config": to_dict(config)})
+        write_run(run)
         trainer = Trainer(scene, config, folder, progress)
         trainer.run()
         (folder / REPORT).unlink(missing_ok=True)  # a report of an earlier, unfinished run
@@ -97,16 +96,18 @@ def train_and_extract(scene_path: Path, config: TrainConfig, folder: Path,
     return log, extract_with_report(folder, scene, log["detector"])[1]
 
 
-def run_ablation(scene_path: Path, out: Path, base: TrainConfig, tables: tuple[str, ...] = TABLES,
-                 progress: bool = True) -> list[dict]:
+def run_ablation(scene_path: Path, out: Path, preset_name: str, base: TrainConfig,
+                 tables: tuple[str, ...] = TABLES, progress: bool = True) -> list[dict]:
     """Train and score every row of the chosen tables (runs shared where configs coincide) in
-    out/<run name>/; writes out/ablation.json and out/ablation.md; returns the rows' results."""
+    out/<run name>/; `base` is the preset `preset_name` with any overrides. Writes
+    out/ablation.json and out/ablation.md; returns the rows' results."""
     rows = [r for r in component_rows() + weighting_rows() if r.table in tables]
     results = []
     for row in rows:
         config = effective_config(dataclasses.replace(base, **row.changes))
         folder = out / run_name(config)
-        log, report = train_and_extract(scene_path, config, folder, progress)
+        run = RunFolder(folder, scene_path.resolve(), preset_name, config)
+        log, report = train_and_extract(run, progress)
         if "metrics" not in report:
             raise InputError(scene_path, "the ablation needs a scene with ground truth")
         results.append({"table": row.table, "label": row.label, "run": folder.name,

@@ -73,7 +73,7 @@ def run_ablation(args: argparse.Namespace) -> None:
     if not tables or any(t not in TABLES for t in tables):
         raise ConfigError(f"--tables must list some of {', '.join(TABLES)}, got {args.tables!r}")
     base = with_overrides(preset(args.preset), args.overrides)
-    results = run_ablation(args.scene, args.out, base, tables, progress=not args.quiet)
+    results = run_ablation(args.scene, args.out, args.preset, base, tables, progress=not args.quiet)
     print(markdown(results))
     print(f"wrote {args.out / 'ablation.json'} and {args.out / 'ablation.md'}")
 

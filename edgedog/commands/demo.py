@@ -28,9 +28,10 @@ def add_parser(subparsers) -> None:
 def run(args: argparse.Namespace) -> None:
     from edgedog.commands.extract import print_report
     from edgedog.curves.report import extract_with_report
-    from edgedog.files import atomic_write_json, read_json
+    from edgedog.files import read_json
     from edgedog.scenes import load_scene
-    from edgedog.train.config import preset, to_dict
+    from edgedog.train.config import preset
+    from edgedog.train.run_folder import RunFolder, write_run
     from edgedog.train.trainer import Trainer
 
     start = time.perf_counter()
@@ -38,9 +39,7 @@ def run(args: argparse.Namespace) -> None:
     generated = time.perf_counter() - start
     out = args.out or (args.cache or default_cache()) / "runs" / "demo"
     config = preset("fast")
-    out.mkdir(parents=True, exist_ok=True)
-    atomic_write_json(out / "config.json",
-                      {"scene": str(folder), "preset": "fast", "config": to_dict(config)})
+    write_run(RunFolder(out, folder, "fast", config))
     scene = load_scene(folder, downscale=config.downscale)
     trainer = Trainer(scene, config, out, progress=not args.quiet)
     if trainer.done and (out / "log.json").is_file():

@@ -30,23 +30,22 @@ def add_parser(subparsers) -> None:
 def run(args: argparse.Namespace) -> None:
     from edgedog.commands.extract import print_report
     from edgedog.curves.report import extract_with_report
-    from edgedog.files import atomic_write_json, read_json
+    from edgedog.files import read_json
     from edgedog.scenes import load_scene
-    from edgedog.train.config import from_dict, preset, to_dict, with_overrides
+    from edgedog.train.config import preset, with_overrides
+    from edgedog.train.run_folder import RunFolder, read_run, write_run
     from edgedog.train.trainer import CHECKPOINT, Trainer
 
-    config_path = args.out / "config.json"
     if args.resume:
         if not (args.out / CHECKPOINT).is_file():
             raise InputError(args.out, "no checkpoint to resume from")
-        config = from_dict(read_json(config_path)["config"])
+        config = read_run(args.out).config
     else:
         if (args.out / CHECKPOINT).is_file():
             raise InputError(args.out, "already holds a run; pass --resume to continue it, or choose "
                                        "another --out")
         config = with_overrides(preset(args.preset), args.overrides)
-        atomic_write_json(config_path, {"scene": str(Path(args.scene).resolve()), "preset": args.preset,
-                                        "config": to_dict(config)})
+        write_run(RunFolder(args.out, Path(args.scene).resolve(), args.preset, config))
     scene = load_scene(args.scene, downscale=config.downscale)
     trainer = Trainer(scene, config, args.out, progress=not args.quiet)
     print(json.dumps({"detector": trainer.detector, "init": trainer.init_report.get("method"),

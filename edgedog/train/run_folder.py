@@ -1,0 +1,40 @@
+"""A run folder's config.json: the scene it trains on, the preset named and the full config.
+
+`edgedog train`, the demo, the ablation bench and the studio all write and read it here, so
+any of them can resume, extract or inspect a run another one made.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+from edgedog.errors import InputError
+from edgedog.files import atomic_write_json, read_json
+from edgedog.train.config import TrainConfig, from_dict, to_dict
+
+RUN_CONFIG = "config.json"
+
+
+@dataclass(frozen=True)
+class RunFolder:
+    """path: the run folder; scene: the scene folder; preset: the preset the config started
+    from ('paper' when a file does not say); config: the full resolved config."""
+
+    path: Path
+    scene: Path
+    preset: str
+    config: TrainConfig
+
+
+def read_run(path: Path) -> RunFolder:
+    data = read_json(path / RUN_CONFIG)
+    if not isinstance(data, dict) or not {"scene", "config"} <= data.keys():
+        raise InputError(path / RUN_CONFIG, "expected 'scene' and 'config' keys (written by edgedog train)")
+    return RunFolder(path, Path(data["scene"]), data.get("preset", "paper"), from_dict(data["config"]))
+
+
+def write_run(run: RunFolder) -> None:
+    """Write config.json atomically, creating the run folder if needed."""
+    atomic_write_json(run.path / RUN_CONFIG, {"scene": str(run.scene), "preset": run.preset,
+                                              "config": to_dict(run.config)})
