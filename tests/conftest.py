@@ -3,6 +3,9 @@ built-in exact box scene generated once per session."""
 
 from __future__ import annotations
 
+import os
+import shutil
+import subprocess
 from pathlib import Path
 
 import pytest
@@ -40,3 +43,24 @@ def builtin_scene_dir(tmp_path_factory) -> Path:
     from edgedog.builtin_scene import write_box_scene
 
     return write_box_scene(tmp_path_factory.mktemp("cache") / "box")
+
+
+@pytest.fixture
+def xvfb_display() -> str:
+    """A virtual X server's display name, e.g. ':7', for windowed tests (skipped without Xvfb)."""
+    xvfb = shutil.which("Xvfb")
+    if xvfb is None:
+        pytest.skip("Xvfb is not installed")
+    read_end, write_end = os.pipe()
+    server = subprocess.Popen([xvfb, "-displayfd", str(write_end), "-nolisten", "tcp", "-screen", "0",
+                               "1600x1000x24"], pass_fds=(write_end,), stdout=subprocess.DEVNULL,
+                              stderr=subprocess.DEVNULL)
+    os.close(write_end)
+    try:
+        with os.fdopen(read_end) as pipe:
+            number = pipe.readline().strip()  # written once the server is ready, newline last
+        assert number, "Xvfb did not start"
+        yield f":{number}"
+    finally:
+        server.terminate()
+        server.wait()

@@ -10,7 +10,6 @@ import ctypes
 import ctypes.util
 import gc
 import os
-import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -252,25 +251,11 @@ def render_in_a_window() -> None:
     assert error.mean() < 1 / 255 and error.max() < 8 / 255, f"max {error.max():.4f}, mean {error.mean():.5f}"
 
 
-def test_splats_draw_into_a_window_framebuffer():
-    xvfb = shutil.which("Xvfb")
-    if xvfb is None:
-        pytest.skip("Xvfb is not installed")
-    read_end, write_end = os.pipe()
-    server = subprocess.Popen([xvfb, "-displayfd", str(write_end), "-nolisten", "tcp"], pass_fds=(write_end,),
-                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    os.close(write_end)
-    try:
-        with os.fdopen(read_end) as pipe:
-            display = pipe.readline().strip()  # written once the server is ready, newline last
-        assert display, "Xvfb did not start"
-        code = "import test_gl_renderer as t; t.render_in_a_window()"
-        result = subprocess.run([sys.executable, "-c", code], cwd=Path(__file__).parent,
-                                env={**os.environ, "DISPLAY": f":{display}"}, capture_output=True, text=True,
-                                timeout=120)
-    finally:
-        server.terminate()
-        server.wait()
+def test_splats_draw_into_a_window_framebuffer(xvfb_display):
+    code = "import test_gl_renderer as t; t.render_in_a_window()"
+    result = subprocess.run([sys.executable, "-c", code], cwd=Path(__file__).parent,
+                            env={**os.environ, "DISPLAY": xvfb_display}, capture_output=True, text=True,
+                            timeout=120)
     assert result.returncode == 0, result.stderr[-2000:]
 
 

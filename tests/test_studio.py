@@ -6,7 +6,6 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
-import shutil
 import subprocess
 import sys
 import time
@@ -349,28 +348,7 @@ def test_without_a_display_the_error_is_one_line(small_box):
     assert result.stderr.count("\n") == 1 and "edgedog train SCENE --out RUN" in result.stderr
 
 
-@pytest.fixture
-def display():
-    """A virtual X server's display number (the test is skipped without Xvfb)."""
-    xvfb = shutil.which("Xvfb")
-    if xvfb is None:
-        pytest.skip("Xvfb is not installed")
-    read_end, write_end = os.pipe()
-    server = subprocess.Popen([xvfb, "-displayfd", str(write_end), "-nolisten", "tcp", "-screen", "0",
-                               "1600x1000x24"], pass_fds=(write_end,), stdout=subprocess.DEVNULL,
-                              stderr=subprocess.DEVNULL)
-    os.close(write_end)
-    try:
-        with os.fdopen(read_end) as pipe:
-            number = pipe.readline().strip()  # written once the server is ready
-        assert number, "Xvfb did not start"
-        yield f":{number}"
-    finally:
-        server.terminate()
-        server.wait()
-
-
-def test_the_window_trains_follows_the_ui_exports_and_closes(small_box, display, tmp_path):
+def test_the_window_trains_follows_the_ui_exports_and_closes(small_box, xvfb_display, tmp_path):
     shot = tmp_path / "studio.png"
     actions = [
         {"request": "start"},
@@ -390,7 +368,7 @@ def test_the_window_trains_follows_the_ui_exports_and_closes(small_box, display,
     ]
     report = tmp_path / "report.json"
     (tmp_path / "script.json").write_text(json.dumps({"report": str(report), "actions": actions}))
-    env = {**os.environ, "DISPLAY": display}
+    env = {**os.environ, "DISPLAY": xvfb_display}
     result = studio(small_box, "--runs", tmp_path / "runs", "--script", tmp_path / "script.json",
                     "--set", "epochs=5000", "--set", "init_count=300", "--set", "checkpoint_every=10",
                     "--set", "fisher_every=100",
