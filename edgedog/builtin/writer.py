@@ -38,7 +38,7 @@ from edgedog.edges.registry import make_detector
 from edgedog.errors import InputError
 from edgedog.groundtruth import GT_SPACING
 from edgedog.scenes.camera import OPENGL_TO_OPENCV, Camera
-from edgedog.scenes.images import as_rgb, to_unit_float
+from edgedog.scenes.images import as_rgb, to_u8, to_unit_float
 
 VAL_VIEWS = 4
 VAL_PHASE = 1.0  # radians: the held-out spiral is turned away from the training one
@@ -120,7 +120,7 @@ def _write_views(root: Path, split: str, cameras: dict[int, Camera], renderer: R
         if drop:
             edges = degrade.drop_segments(edges, drops)
         cv2.imwrite(str(root / f"{split}_img" / f"{number}.png"), cv2.cvtColor(rgba, cv2.COLOR_RGBA2BGRA))
-        cv2.imwrite(str(root / split / f"{number}.png"), np.clip(edges * 255 + 0.5, 0, 255).astype(np.uint8))
+        cv2.imwrite(str(root / split / f"{number}.png"), to_u8(edges))
         frame = {"file_path": f"./{split}/{number}", "camera_intrinsics": camera.K.tolist()}
         c2w = written = camera.c2w()
         if spoil.rotation_deg or spoil.translation_mm:

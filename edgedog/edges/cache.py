@@ -20,6 +20,7 @@ from tqdm import tqdm
 from edgedog.edges.detector import EdgeDetector
 from edgedog.files import atomic_write, atomic_write_json, default_cache, read_json
 from edgedog.scenes import Scene
+from edgedog.scenes.images import to_u8
 
 CACHE_FOLDER = "edgedog_edges"
 
@@ -43,7 +44,7 @@ def maps_folder(scene: Scene, detector: EdgeDetector) -> Path:
 
 
 def _write_png(path: Path, edge_map: np.ndarray) -> None:
-    ok, data = cv2.imencode(".png", np.clip(edge_map * 255.0 + 0.5, 0, 255).astype(np.uint8))
+    ok, data = cv2.imencode(".png", to_u8(edge_map))
     if not ok:
         raise RuntimeError(f"PNG encoding failed for {path}")
     atomic_write(path, lambda f: f.write(data.tobytes()))

@@ -6,10 +6,11 @@ import cv2
 import numpy as np
 
 from edgedog.edges.detector import EdgeDetector
+from edgedog.scenes.images import to_u8
 
 
 def _gray_u8(image: np.ndarray) -> np.ndarray:
-    return cv2.cvtColor(np.clip(image * 255.0 + 0.5, 0, 255).astype(np.uint8), cv2.COLOR_RGB2GRAY)
+    return cv2.cvtColor(to_u8(image), cv2.COLOR_RGB2GRAY)
 
 
 class SobelDetector(EdgeDetector):

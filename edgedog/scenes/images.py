@@ -50,6 +50,11 @@ def to_unit_float(image: np.ndarray) -> np.ndarray:
     return image.astype(np.float32)
 
 
+def to_u8(image: np.ndarray) -> np.ndarray:
+    """Float image in [0, 1] -> uint8, rounded to nearest (values outside are clipped)."""
+    return np.clip(image * 255.0 + 0.5, 0, 255).astype(np.uint8)
+
+
 def resize_to(image: np.ndarray, width: int, height: int) -> np.ndarray:
     """Area-averaging resize (no-op at the same size); keeps the channel layout."""
     if image.shape[1] == width and image.shape[0] == height:
