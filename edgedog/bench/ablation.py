@@ -81,18 +81,17 @@ def train_and_extract(run: RunFolder, progress: bool) -> tuple[dict, dict]:
     from edgedog.scenes import load_scene
     from edgedog.train.trainer import Trainer
 
-    folder, config = run.path, run.config
+    folder, config, log_path = run.path, run.config, run.path / "log.json"
     if (folder / RUN_CONFIG).is_file() and read_run(folder).config != config:
         raise InputError(folder, "holds a run with another configuration; choose another --out")
+    if log_path.is_file() and (folder / REPORT).is_file():
+        return read_json(log_path), read_json(folder / REPORT)
     scene = load_scene(run.scene, downscale=config.downscale)
-    if not (folder / "log.json").is_file():
+    if not log_path.is_file():
         write_run(run)
-        trainer = Trainer(scene, config, folder, progress)
-        trainer.run()
-        (folder / REPORT).unlink(missing_ok=True)  # a report of an earlier, unfinished run
-    log = read_json(folder / "log.json")
-    if (folder / REPORT).is_file():
-        return log, read_json(folder / REPORT)
+        Trainer(scene, config, folder, progress).run()
+    log = read_json(log_path)
+    # Extraction rewrites any report left by an earlier, unfinished run.
     return log, extract_with_report(folder, scene, log["detector"])[1]
 
 
