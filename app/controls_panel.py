@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from edgedog.app import layout
 from edgedog.app.extraction import EXPORT_FORMATS
-from edgedog.app.layers import layer_members
+from edgedog.app.layers import layer_members, list_new_layers
 from edgedog.app.state import COLOR_MODES, KERNELS, PRESETS, WEIGHTINGS
 from edgedog.app.worker import FAILED, FINISHED, PAUSED, STOPPED
 from imgui_bundle import imgui
@@ -110,7 +110,9 @@ def _display(studio) -> None:
         imgui.text_disabled("viridis: {:.3g} .. {:.3g}".format(*studio.view.color_range))
     imgui.text("Layers")
     members = {} if latest is None else layer_members(latest.snapshot)
-    for name in display.layers:
+    if latest is not None:
+        list_new_layers(display.layers, latest.snapshot)
+    for name in list(display.layers):
         display.layers[name] = _checkbox(f"{name}##layer", display.layers[name])
         imgui.same_line()
         imgui.text_disabled(f"{len(members.get(name, ()))} primitives")

@@ -1,22 +1,42 @@
-"""The multi-granularity layers of a model, for the layer list of the 3D view.
+"""The multi-granularity layers of a model, for the layer lists of the 3D view and the 2D render.
 
-Training has one layer today, "L0", holding every primitive; layered training will give each
-primitive its layer. The view hides a layer by leaving its primitives out of the upload.
+A snapshot's `layers` gives each primitive's layer index (None: a single-layer run, all "L0").
+A view hides a layer by leaving its primitives out of what it draws.
 """
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Mapping
 
 import numpy as np
 
+from edgedog.train.layers import layer_name
+
 
 def layer_members(snapshot) -> dict[str, np.ndarray]:
-    """Layer name -> (n,) indices of the snapshot's primitives in it."""
-    return {"L0": np.arange(len(snapshot.means))}
+    """Layer name -> (n,) indices of the snapshot's primitives in it, bottom layer first."""
+    if snapshot.layers is None:
+        return {layer_name(0): np.arange(len(snapshot.means))}
+    return {layer_name(int(i)): np.flatnonzero(snapshot.layers == i) for i in np.unique(snapshot.layers)}
 
 
 def visible_members(snapshot, shown: Mapping[str, bool]) -> np.ndarray:
     """(n,) sorted indices of the primitives in the shown layers (a layer not listed is shown)."""
     members = [idx for name, idx in layer_members(snapshot).items() if shown.get(name, True)]
     return np.unique(np.concatenate(members)) if members else np.zeros(0, np.int64)
+
+
+def visible_subset(snapshot, shown: Mapping[str, bool]):
+    """A copy of the snapshot with the primitives of the shown layers only."""
+    members = visible_members(snapshot, shown)
+    return dataclasses.replace(snapshot, means=snapshot.means[members], scales=snapshot.scales[members],
+                               quats=snapshot.quats[members], opacity=snapshot.opacity[members],
+                               k_raw=snapshot.k_raw[members],
+                               layers=None if snapshot.layers is None else snapshot.layers[members])
+
+
+def list_new_layers(shown: dict[str, bool], snapshot) -> None:
+    """Add the snapshot's layers missing from a layer list `shown` (name -> shown), shown."""
+    for name in layer_members(snapshot):
+        shown.setdefault(name, True)

@@ -18,6 +18,7 @@ from edgedog.app.worker import TrainingWorker
 from edgedog.curve_files import EdgeCurves
 from edgedog.scenes import Scene, load_scene
 from edgedog.train.config import TrainConfig, preset, with_overrides
+from edgedog.train.layered import is_layered, read_layered
 from edgedog.train.run_folder import RUN_CONFIG, RunFolder, read_run, write_run
 from edgedog.train.trainer import Trainer
 
@@ -64,11 +65,15 @@ class Session:
     @classmethod
     def open(cls, path: str | Path, runs_root: Path | None = None, preset_name: str = "paper",
              overrides: Sequence[str] = ()) -> Session:
-        """A scene folder, or a run folder (one with config.json) to resume.
+        """A scene folder, or a run folder (one with config.json) to resume; a layered run opens
+        its top layer, which holds every layer.
 
         Runs go to `runs_root`: by default ./runs for a scene, the run's parent folder for a run.
         """
         path = Path(path).expanduser().resolve()
+        if is_layered(path):
+            layered = read_layered(path)
+            path = layered.layer_dir(len(layered.levels) - 1)
         if (path / RUN_CONFIG).is_file():
             run = read_run(path)
             return cls(run.scene, runs_root or path.parent, run.preset, overrides, resume=run)

@@ -15,6 +15,7 @@ from edgedog.app.extraction import Extraction, extract_snapshot
 from edgedog.app.inspection import NAMES as INSPECTOR_NAMES
 from edgedog.app.inspection import Inspector, inspect_view
 from edgedog.app.jobs import BackgroundJob, Done
+from edgedog.app.layers import visible_subset
 from edgedog.app.session import Session
 from edgedog.app.state import LiveSettings, Request, UIState
 from edgedog.app.textures import ImageTexture
@@ -191,12 +192,14 @@ class Studio:
         scene = self.session.scene
         detector = info.detector if info else (scene.detectors[0] if scene.detectors else None)
         weighting = self.state.live.weighting
+        shown = self.state.display.layers
         key = (*self.run_token, None if latest is None else latest.version, self.state.view, weighting,
-               detector)
+               detector, tuple(sorted(name for name, on in shown.items() if on)))
         now = time.monotonic()
         if key == self._inspected or now - self._last_inspect < INSPECT_EVERY:
             return
-        snapshot = latest.snapshot if latest is not None and info is not None else None
+        # The 2D render shows the layers the 3D view shows.
+        snapshot = visible_subset(latest.snapshot, shown) if latest is not None and info is not None else None
         raster = None if info is None else info.raster
         view = min(self.state.view, len(scene) - 1)
         pixel_uncertainty = self.session.run_config.pixel_uncertainty

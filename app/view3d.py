@@ -7,14 +7,13 @@ per snapshot version); `render` re-draws the target only when the picture would 
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Sequence
 
 import moderngl
 import numpy as np
 import torch
 from edgedog.app.colors import colormap, curve_palette
-from edgedog.app.layers import visible_members
+from edgedog.app.layers import visible_subset
 from edgedog.app.state import Display
 from edgedog.app.worker import Published
 from edgedog.renderer.config import RasterConfig
@@ -53,13 +52,6 @@ def looked_at(cameras: Sequence[Camera], fallback: np.ndarray) -> np.ndarray:
     if np.linalg.cond(system) > 1e6:
         return fallback
     return np.linalg.solve(system, rhs)
-
-
-def _subset(snapshot, members: np.ndarray):
-    """The snapshot's primitives `members` only (what the splat renderer takes)."""
-    return dataclasses.replace(snapshot, means=snapshot.means[members], scales=snapshot.scales[members],
-                               quats=snapshot.quats[members], opacity=snapshot.opacity[members],
-                               k_raw=snapshot.k_raw[members])
 
 
 def splat_values(splats, mode: str, raster: RasterConfig) -> np.ndarray | None:
@@ -152,8 +144,7 @@ class View3D:
         shown = tuple(sorted(name for name, on in display.layers.items() if on))
         key = (published.key, raster, shown)
         if key != self._splat_key:
-            members = visible_members(published.snapshot, display.layers)
-            self._splat_subset = _subset(published.snapshot, members)
+            self._splat_subset = visible_subset(published.snapshot, display.layers)
             self._uploads += 1
             self.splats.upload(self._splat_subset, self._uploads, raster)
             self._splat_key, self._color_key, self._dirty = key, None, True

@@ -3,18 +3,12 @@
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 
 import numpy as np
 import pytest
+from cli_runner import edgedog
 
 from edgedog.builtin_scene import CORNERS, EDGES
-
-
-def edgedog(*args, cwd=None) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "edgedog", *map(str, args)], cwd=cwd,
-                          capture_output=True, text=True)
 
 
 def test_info_describes_the_scene(builtin_scene_dir):

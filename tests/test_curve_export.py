@@ -3,12 +3,11 @@
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 
 import cv2
 import numpy as np
 import pytest
+from cli_runner import edgedog
 from plyfile import PlyData
 from scipy.spatial import cKDTree
 
@@ -99,10 +98,6 @@ def test_writers_refuse_what_the_format_cannot_hold(tmp_path):
 
 
 # --- edgedog export -------------------------------------------------------------------------------
-
-
-def edgedog(*args) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "edgedog", *map(str, args)], capture_output=True, text=True)
 
 
 @pytest.mark.parametrize("fmt", ["obj", "ply", "json"])

@@ -12,10 +12,11 @@ import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 
+from edgedog.bench.tables import cell
 from edgedog.errors import InputError
 from edgedog.files import atomic_write_bytes, atomic_write_json, read_json
 from edgedog.train.config import TrainConfig
-from edgedog.train.run_folder import RUN_CONFIG, RunFolder, read_run, write_run
+from edgedog.train.run_folder import RunFolder, check_same_run, write_run
 
 COMPONENTS = "components"
 WEIGHTING = "weighting"
@@ -82,8 +83,7 @@ def train_and_extract(run: RunFolder, progress: bool) -> tuple[dict, dict]:
     from edgedog.train.trainer import Trainer
 
     folder, config, log_path = run.path, run.config, run.path / "log.json"
-    if (folder / RUN_CONFIG).is_file() and read_run(folder).config != config:
-        raise InputError(folder, "holds a run with another configuration; choose another --out")
+    check_same_run(run)
     if log_path.is_file() and (folder / REPORT).is_file():
         return read_json(log_path), read_json(folder / REPORT)
     scene = load_scene(run.scene, downscale=config.downscale)
@@ -118,10 +118,6 @@ def run_ablation(scene_path: Path, out: Path, preset_name: str, base: TrainConfi
     return results
 
 
-def _number(value: float | None, digits: int) -> str:
-    return "–" if value is None else f"{value:.{digits}f}"
-
-
 def markdown(results: list[dict]) -> str:
     """The two tables as Markdown, rows in the order given."""
     lines = []
@@ -137,10 +133,10 @@ def markdown(results: list[dict]) -> str:
                   "|---|---|---|---|---|---|---|---|---|---|---|---|"]
         for r in rows:
             m = r["metrics"] or {}
-            scores = [_number(m.get(key), 1) for key in
+            scores = [cell(m.get(key), 1) for key in
                       ("recall_5mm", "precision_5mm", "fscore_5mm", "fscore_10mm", "fscore_20mm")]
-            scores += [_number(m.get("acc_mm"), 2), _number(m.get("comp_mm"), 2),
-                       _number(r["points_fscore_10mm"], 1)]
+            scores += [cell(m.get("acc_mm"), 2), cell(m.get("comp_mm"), 2),
+                       cell(r["points_fscore_10mm"], 1)]
             lines.append(f"| {r['label']} | {' | '.join(scores)} | {r['curves']} | "
                          f"{r['train_seconds']:.0f} | {r['primitives']} |")
         lines.append("")

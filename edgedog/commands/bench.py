@@ -46,6 +46,50 @@ def add_parser(subparsers) -> None:
                           help="comma-separated: components (Table 3), weighting (Table 4)")
     ablation.add_argument("--quiet", action="store_true", help="no progress bars")
     ablation.set_defaults(run=run_ablation)
+    layers = kinds.add_parser(
+        "layers", help="multi-granularity layers against a single run on the finest maps (Fig. 7)",
+        description="Train a layered run (OUT/layered: L0, L1, ... each on its own maps with the layers "
+                    "below fixed) and a direct run on the finest level's maps (OUT/direct), extract and "
+                    "score every layer, every cumulative stack and the direct run, and write "
+                    "OUT/layers.json, OUT/layers.md and the figure OUT/layers.png (rendered offscreen). "
+                    "Finished runs are reused, unfinished ones resumed.")
+    layers.add_argument("scene", type=Path, help="scene folder")
+    layers.add_argument("--out", type=Path, required=True,
+                        help="folder for the runs, the table and the figure")
+    layers.add_argument("--preset", choices=("paper", "fast"), default="fast")
+    layers.add_argument("--layers", default="L0,L1,L2", metavar="L0,L1,...", help="the levels to stack")
+    layers.add_argument("--level", dest="levels", action="append", default=[],
+                        metavar="NAME=DETECTOR[@FLOOR]",
+                        help="define a level's maps (as for edgedog train --level)")
+    layers.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                        help="override a training setting of every run (repeatable)")
+    layers.add_argument("--no-figure", action="store_true", help="skip the figure (needs EGL)")
+    layers.add_argument("--quiet", action="store_true", help="no progress bars")
+    layers.set_defaults(run=run_layers)
+    _add_speed_error(kinds)
+
+
+def _add_speed_error(kinds) -> None:
+    from edgedog.bench.speed_error import BUDGETS, DEFAULT_BUDGETS
+
+    speed = kinds.add_parser(
+        "speed-error", help="error of the extracted curves against training time, for a few budgets",
+        description="Train one run per budget in OUT/<budget>/, pausing at evenly spaced epochs to "
+                    "extract and score the curves; write OUT/speed_error.csv, .md and .png. Seconds "
+                    "are training time only. Finished budgets in OUT are reused, unfinished ones "
+                    "resumed. Budgets: " + "; ".join(f"{b.name}: {b.description}" for b in BUDGETS.values())
+                    + ".")
+    speed.add_argument("scene", type=Path, help="scene folder with ground truth")
+    speed.add_argument("--out", type=Path, required=True, help="folder for the runs and the summary")
+    speed.add_argument("--budgets", default=DEFAULT_BUDGETS,
+                       help=f"comma-separated budget names (default {DEFAULT_BUDGETS})")
+    speed.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                       help="override a training setting for every budget, before the budget's own "
+                            "downscale or epoch share (repeatable)")
+    speed.add_argument("--evals", type=int, default=5,
+                       help="evaluation points per run, evenly spaced in epochs, the last at the end")
+    speed.add_argument("--quiet", action="store_true", help="no progress bars")
+    speed.set_defaults(run=run_speed_error)
 
 
 def _report(result: dict, path: Path | None) -> None:
@@ -76,6 +120,32 @@ def run_ablation(args: argparse.Namespace) -> None:
     results = run_ablation(args.scene, args.out, args.preset, base, tables, progress=not args.quiet)
     print(markdown(results))
     print(f"wrote {args.out / 'ablation.json'} and {args.out / 'ablation.md'}")
+
+
+def run_speed_error(args: argparse.Namespace) -> None:
+    from edgedog.bench.speed_error import SUMMARY, markdown, parse_budgets, run_speed_error
+
+    budgets = parse_budgets(args.budgets)
+    results = run_speed_error(args.scene, args.out, budgets, args.overrides, args.evals,
+                              progress=not args.quiet)
+    print(markdown(results, args.scene.resolve().name))
+    print("wrote " + ", ".join(str(args.out / name) for name in SUMMARY))
+    print("runs in " + ", ".join(str(args.out / b.name) for b in budgets))
+
+
+def run_layers(args: argparse.Namespace) -> None:
+    from edgedog.bench.layers import markdown, run_layers_bench
+    from edgedog.edges.levels import resolve_levels
+    from edgedog.train.config import preset, with_overrides
+
+    names = [name.strip() for name in args.layers.split(",") if name.strip()]
+    levels = resolve_levels(names, args.levels)
+    base = with_overrides(preset(args.preset), args.overrides)
+    results = run_layers_bench(args.scene, args.out, args.preset, base, levels, progress=not args.quiet,
+                               figure=not args.no_figure)
+    print(markdown(results))
+    print(f"wrote {args.out / 'layers.json'}, {args.out / 'layers.md'}"
+          + ("" if args.no_figure else f" and {args.out / 'layers.png'}"))
 
 
 def run_edges(args: argparse.Namespace) -> None:

@@ -19,6 +19,9 @@ def add_parser(subparsers) -> None:
     parser.add_argument("--frame", choices=("world", "gt"), default="world",
                         help="world: the scene's frame (default); gt: mapped with the scene's "
                              "world-to-ground-truth transform")
+    parser.add_argument("--layers", default=None, metavar="NAME",
+                        help="for a layered run: the selection to export, a layer (L1) or a "
+                             "cumulative stack (L0+L1); default the whole stack")
     parser.add_argument("--out", type=Path, default=None,
                         help="output file (default: RUN/curves_<frame>.<format>)")
     parser.set_defaults(run=run)
@@ -27,14 +30,25 @@ def add_parser(subparsers) -> None:
 def run(args: argparse.Namespace) -> None:
     from edgedog.curve_files import read_edges, write_edges
     from edgedog.curves.extract import run_scene
+    from edgedog.train.layered import is_layered, read_layered, selections
 
-    source = args.run_dir / "curves.json"
+    folder, frame_run = args.run_dir, args.run_dir
+    if is_layered(args.run_dir):
+        run = read_layered(args.run_dir)
+        names = [name for name, _ in selections(len(run.levels))]
+        name = args.layers or names[-1]
+        if name not in names:
+            raise InputError(args.run_dir, f"no layer selection {name!r}; choose from {', '.join(names)}")
+        folder, frame_run = args.run_dir / "curves" / name, run.layer_dir(0)
+    elif args.layers:
+        raise InputError(args.run_dir, "--layers needs a layered run (edgedog train --layers)")
+    source = folder / "curves.json"
     if not source.is_file():
         raise InputError(source, "no curves yet: run `edgedog extract RUN` first")
     curves = read_edges(source)
     if args.frame == "gt":
-        curves = curves.transformed(run_scene(args.run_dir)[0].world_to_gt)
-    out = args.out or args.run_dir / f"curves_{args.frame}.{args.format}"
+        curves = curves.transformed(run_scene(frame_run, maps=False)[0].world_to_gt)
+    out = args.out or folder / f"curves_{args.frame}.{args.format}"
     if out.suffix.lower() != f".{args.format}":
         raise InputError(out, f"the file name must end in .{args.format} for --format {args.format}")
     write_edges(out, curves)

@@ -89,12 +89,18 @@ class RunExtraction:
     counts: dict[str, int] = field(default_factory=dict)
 
 
-def run_scene(run_dir: Path) -> tuple[Scene, str]:
-    """The scene a run was trained on and the name of the edge maps it used (from log.json)."""
+def run_scene(run_dir: Path, maps: bool = True) -> tuple[Scene, str]:
+    """The scene as a run was trained on it (its resolution, and with `maps` the edge maps it
+    used, computed ones found in the edge-map cache) and the name of those maps (from log.json)."""
+    from edgedog.edges.cache import attach_edge_maps
+
     log = read_json(run_dir / "log.json")
     if not isinstance(log, dict) or "scene" not in log or "detector" not in log:
         raise InputError(run_dir / "log.json", "expected 'scene' and 'detector' keys (from edgedog train)")
-    return load_scene(log["scene"]), log["detector"]
+    scene = load_scene(log["scene"], downscale=log.get("config", {}).get("downscale", 1))
+    if maps:
+        attach_edge_maps(scene, log["detector"])
+    return scene, log["detector"]
 
 
 def filter_primitives(primitives: EdgePrimitives, config: ExtractConfig, scene: Scene | None,
@@ -127,15 +133,21 @@ def write_edge_points(path: Path, points: EdgePrimitives, directions: np.ndarray
 
 
 def extract_run(run_dir: str | Path, config: ExtractConfig = ExtractConfig(), scene: Scene | None = None,
-                detector: str | None = None) -> RunExtraction:
+                detector: str | None = None, layers: set[int] | None = None,
+                out_dir: str | Path | None = None) -> RunExtraction:
     """Filter a run's primitives, fit curves, and write `OUTPUTS` atomically in the run folder.
 
     Args:
         scene, detector: the run's scene and edge maps, when the caller has them; by default
             read from the run's log.json, and only when the projection filter needs them.
+        layers: extract only the primitives of these layers (default: all).
+        out_dir: where the outputs go (default: the run folder).
     """
     run_dir = Path(run_dir)
+    out_dir = run_dir if out_dir is None else Path(out_dir)
     primitives = read_primitives(run_dir / "primitives.ply")
+    if layers is not None:
+        primitives = primitives.in_layers(layers)
     if config.filter_projection and (scene is None or detector is None):
         scene, detector = run_scene(run_dir)
     counts: dict[str, int] = {}
@@ -144,6 +156,6 @@ def extract_run(run_dir: str | Path, config: ExtractConfig = ExtractConfig(), sc
     curves, chains = extract_curves(points.points, directions, config)
     counts.update(chains=len(chains), lines=len(curves.lines), beziers=len(curves.beziers))
     for name in OUTPUTS[:3]:
-        write_edges(run_dir / name, curves)
-    write_edge_points(run_dir / "edge_points.ply", points, directions)
+        write_edges(out_dir / name, curves)
+    write_edge_points(out_dir / "edge_points.ply", points, directions)
     return RunExtraction(curves, points, directions, counts)

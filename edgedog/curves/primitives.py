@@ -14,6 +14,8 @@ _COLUMNS = ["x", "y", "z", "scale_0", "scale_1", "scale_2", "rot_0", "rot_1", "r
             "k_0", "k_1"]
 UNCERTAINTY = "uncertainty"
 """Optional per-primitive score column carried through to edge_points.ply when a run has it."""
+LAYER = "layer"
+"""Optional column: the multi-granularity layer of each primitive (edgedog.train.layers)."""
 
 
 @dataclass
@@ -21,7 +23,8 @@ class EdgePrimitives:
     """Primitives as oriented edge points.
 
     points: (N, 3) centres; directions: (N, 3) unit axes of the largest scale; elongation: (N,)
-    largest / middle scale; opacity: (N,); k: (N, 2) DoG shape; uncertainty: (N,) or None.
+    largest / middle scale; opacity: (N,); k: (N, 2) DoG shape; uncertainty: (N,) or None;
+    layers: (N,) int64 layer index or None (a single-layer run).
     """
 
     points: np.ndarray
@@ -30,6 +33,7 @@ class EdgePrimitives:
     opacity: np.ndarray
     k: np.ndarray
     uncertainty: np.ndarray | None = None
+    layers: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.points)
@@ -38,7 +42,13 @@ class EdgePrimitives:
         """The primitives selected by a (N,) bool mask or an index array."""
         return EdgePrimitives(self.points[keep], self.directions[keep], self.elongation[keep],
                               self.opacity[keep], self.k[keep],
-                              None if self.uncertainty is None else self.uncertainty[keep])
+                              None if self.uncertainty is None else self.uncertainty[keep],
+                              None if self.layers is None else self.layers[keep])
+
+    def in_layers(self, layers: set[int]) -> EdgePrimitives:
+        """The primitives of the given layers (a run without layers has everything in layer 0)."""
+        own = np.zeros(len(self), np.int64) if self.layers is None else self.layers
+        return self.subset(np.isin(own, sorted(layers)))
 
 
 def quaternion_axes(quats: np.ndarray) -> np.ndarray:
@@ -71,10 +81,11 @@ def read_primitives(path: str | Path) -> EdgePrimitives:
     points, scales, quats = columns(_COLUMNS[:3]), columns(_COLUMNS[3:6]), columns(_COLUMNS[6:10])
     opacity, k = columns(["opacity"])[:, 0], columns(["k_0", "k_1"])
     uncertainty = columns([UNCERTAINTY])[:, 0] if UNCERTAINTY in names else None
+    layers = np.rint(columns([LAYER])[:, 0]).astype(np.int64) if LAYER in names else None
     if not np.all(np.isfinite(np.hstack([points, scales, quats]))) or np.any(np.all(quats == 0, axis=1)):
         raise InputError(path, "primitives contain NaN, infinite values or zero quaternions")
     largest = np.argmax(scales, axis=1)
     directions = quaternion_axes(quats)[np.arange(len(points)), :, largest]
     ordered = np.sort(scales, axis=1)
     elongation = ordered[:, 2] / np.maximum(ordered[:, 1], 1e-12)
-    return EdgePrimitives(points, directions, elongation, opacity, k, uncertainty)
+    return EdgePrimitives(points, directions, elongation, opacity, k, uncertainty, layers)

@@ -29,18 +29,20 @@ def score_extraction(result: RunExtraction, scene: Scene) -> dict[str, EdgeMetri
     return {name: evaluate(points, gt) for name, points in samples.items() if len(points)}
 
 
-def extract_with_report(run_dir: Path, scene: Scene, detector: str,
-                        config: ExtractConfig = ExtractConfig()) -> tuple[RunExtraction, dict]:
-    """Extract a run's curves (see `extract_run`), score them, and write RUN/extract.json.
+def extract_with_report(run_dir: Path, scene: Scene, detector: str, config: ExtractConfig = ExtractConfig(),
+                        layers: set[int] | None = None,
+                        out_dir: Path | None = None) -> tuple[RunExtraction, dict]:
+    """Extract a run's curves (see `extract_run`, which also takes `layers` and `out_dir`), score
+    them, and write extract.json beside them.
 
     Returns the extraction and the report: {"config", "counts", and with ground truth
     "ground_truth" and "metrics"}, metrics keyed "points" / "curves" (each only when there is
     something to score) as `EdgeMetrics.to_dict()`.
     """
-    result = extract_run(run_dir, config, scene, detector)
+    result = extract_run(run_dir, config, scene, detector, layers, out_dir)
     report = {"config": to_dict(config), "counts": result.counts}
     if scene.ground_truth is not None:
         report["ground_truth"] = scene.ground_truth.description
         report["metrics"] = {name: m.to_dict() for name, m in score_extraction(result, scene).items()}
-    atomic_write_json(Path(run_dir) / REPORT, report)
+    atomic_write_json(Path(out_dir or run_dir) / REPORT, report)
     return result, report

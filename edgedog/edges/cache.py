@@ -105,3 +105,12 @@ def ensure_edge_maps(scene: Scene, detector: EdgeDetector, recompute: bool = Fal
     scene.views = [dataclasses.replace(view, edge_paths={**view.edge_paths, detector.name: path})
                    for view, path in zip(scene.views, paths)]
     return EdgeMapRun(detector.name, folder, computed, seconds, pixels / 1e6)
+
+
+def attach_edge_maps(scene: Scene, name: str, progress: bool = False) -> None:
+    """Make the maps called `name` loadable from `scene`: its own maps of that name, else those
+    of the detector of that name (found in the cache, or computed now)."""
+    from edgedog.edges.registry import make_detector
+
+    if name not in scene.detectors:
+        ensure_edge_maps(scene, make_detector(name), progress=progress)

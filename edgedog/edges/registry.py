@@ -30,8 +30,9 @@ def make_detector(name: str, weights: str | Path | None = None) -> EdgeDetector:
     """Build a detector from its name.
 
     Args:
-        name: "sobel", "canny", "pidinet" (BSDS500), "pidinet-nyud", "pidinet-multicue",
-            optionally with ":side1" ... ":side4" for a PiDiNet side output, or "auto":
+        name: "sobel", "canny" (or "canny:LOW,HIGH" with its thresholds), "pidinet" (BSDS500),
+            "pidinet-nyud", "pidinet-multicue", optionally with ":side1" ... ":side4" for a
+            PiDiNet side output, or "auto":
             PiDiNet when its weights can be found, else the weight-free default (canny).
         weights: PiDiNet weights file or folder; defaults to $EDGEDOG_PIDINET.
     """
@@ -40,6 +41,8 @@ def make_detector(name: str, weights: str | Path | None = None) -> EdgeDetector:
     if name in WEIGHT_FREE:
         return WEIGHT_FREE[name]()
     base, _, output = name.partition(":")
+    if base == "canny" and output:
+        return _canny_with_thresholds(name, output)
     if base in PIDINET_VARIANTS and (output or "fused") in PIDINET_OUTPUTS:
         from edgedog.edges.pidinet import PidinetDetector, pidinet_weights  # imports torch
 
@@ -47,4 +50,18 @@ def make_detector(name: str, weights: str | Path | None = None) -> EdgeDetector:
         detector.name = name
         return detector
     raise ConfigError(f"unknown detector {name!r}; choose from {', '.join(detector_names())} "
-                     f"(PiDiNet names take :{'/:'.join(PIDINET_OUTPUTS[1:])})")
+                     f"(PiDiNet names take :{'/:'.join(PIDINET_OUTPUTS[1:])}, canny takes :LOW,HIGH)")
+
+
+def _canny_with_thresholds(name: str, thresholds: str) -> EdgeDetector:
+    """'canny:LOW,HIGH': Canny with its hysteresis thresholds (grey levels); higher thresholds
+    keep only the stronger edges (the weight-free coarse levels of a layered model)."""
+    try:
+        low, high = (int(t) for t in thresholds.split(","))
+    except ValueError:
+        raise ConfigError(f"detector {name!r}: expected canny:LOW,HIGH with two integers") from None
+    if not 0 <= low <= high:
+        raise ConfigError(f"detector {name!r}: expected 0 <= LOW <= HIGH")
+    detector = CannyDetector(low, high)
+    detector.name = name
+    return detector

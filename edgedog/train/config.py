@@ -53,6 +53,8 @@ class TrainConfig:
     quats_from_epoch: int = 30
     lr_k: float = 1e-4
 
+    map_floor: float = 0.0
+    """Map values below this are set to zero: a coarse layer keeps only the strong edges."""
     edge_profile: Literal["raw", "thin"] = "raw"
     """'raw': fit the maps as they are; 'thin': fit their ridge drawn with a narrow Gaussian
     profile (edgedog.edges.thin), which removes the bias of thick, asymmetric detector bands."""
@@ -108,6 +110,16 @@ class TrainConfig:
     max_primitives: int = 200_000
     """Duplication never grows the model beyond this."""
 
+    # --- multi-granularity layers (edgedog.train.layers)
+    layer: int = 0
+    """Index of the layer this run adds; the layers below it are given to the trainer, fixed."""
+    lower_lr_scale: float = 0.0
+    """Fine-tune the layers below at this fraction of the learning rates (0: frozen)."""
+    residual_min_share: float = 0.1
+    """Above layer 0, initial points are kept where they land on the residual edges (the map
+    minus the render of the layers below, >= edge_threshold) in at least this share of the
+    views that see them."""
+
     # --- run
     seed: int = 0
     checkpoint_every: int = 50
@@ -124,6 +136,8 @@ class TrainConfig:
             raise ConfigError(f"kernel must be dog or gaussian, got {self.kernel!r}")
         if self.edge_profile not in ("raw", "thin"):
             raise ConfigError(f"edge_profile must be raw or thin, got {self.edge_profile!r}")
+        if self.layer < 0 or self.lower_lr_scale < 0:
+            raise ConfigError("layer and lower_lr_scale must not be negative")
         if self.epochs < 1 or self.downscale < 1:
             raise ConfigError("epochs and downscale must be positive")
 

@@ -38,3 +38,12 @@ def write_run(run: RunFolder) -> None:
     """Write config.json atomically, creating the run folder if needed."""
     atomic_write_json(run.path / RUN_CONFIG, {"scene": str(run.scene), "preset": run.preset,
                                               "config": to_dict(run.config)})
+
+
+def check_same_run(run: RunFolder) -> None:
+    """A run folder already there (from an earlier bench) must hold this very run: same scene and
+    configuration; a benchmark never mixes two runs in one folder."""
+    if (run.path / RUN_CONFIG).is_file():
+        existing = read_run(run.path)
+        if existing.config != run.config or existing.scene != run.scene:
+            raise InputError(run.path, "holds a run of another scene or configuration; choose another --out")

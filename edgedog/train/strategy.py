@@ -48,6 +48,21 @@ class EdgeViews:
     edge_masks: list[torch.Tensor]
 
 
+def edge_hit_share(points: np.ndarray, pinholes: list[Camera],
+                   edge_masks: list[torch.Tensor]) -> torch.Tensor:
+    """(N,) share of the views seeing a point (N, 3) in which it lands on an edge pixel of that
+    view's (H, W) bool mask (0 for a point no view sees)."""
+    seen = torch.zeros(len(points))
+    on_edge = torch.zeros(len(points))
+    for camera, mask in zip(pinholes, edge_masks):
+        pixels, inside = camera.pixels(points)
+        seen += torch.from_numpy(inside).float()
+        hit = torch.zeros(len(points), dtype=torch.bool)
+        hit[inside] = mask[pixels[inside, 1], pixels[inside, 0]]
+        on_edge += hit.float()
+    return on_edge / seen.clamp_min(1)
+
+
 class DensityStrategy:
     """Decides, at the end of each epoch, which primitives to duplicate, cull or prune."""
 
@@ -58,11 +73,14 @@ class DensityStrategy:
     def initial_state(self, n: int) -> StrategyState:
         return StrategyState(absgrad=torch.zeros(n))
 
-    def after_backward(self, state: StrategyState, out: RenderOutput) -> None:
-        """Accumulate the absgrad norm of the view just rendered (EdgeGaussians' duplication signal)."""
+    def after_backward(self, state: StrategyState, out: RenderOutput, skip: int = 0) -> None:
+        """Accumulate the absgrad norm of the view just rendered (EdgeGaussians' duplication signal).
+
+        `skip`: the render's first primitives are fixed lower layers, not the strategy's model.
+        """
         if out.absgrad.value is None:
             raise RuntimeError("density control needs the C++ rasterizer's absgrad (backend='cpp')")
-        state.absgrad += out.absgrad.value.norm(dim=1)
+        state.absgrad += out.absgrad.value[skip:].norm(dim=1)
 
     def at_epoch_end(self, epoch: int, model: EdgeModel, optimizers: Optimizers, state: StrategyState,
                      views: EdgeViews, generator: torch.Generator, keep_ratio: float) -> list[dict]:
@@ -121,17 +139,7 @@ class DensityStrategy:
         return {"event": f"cull_{reason}", "before": before, "after": len(model)}
 
     def _edge_hit_share(self, model: EdgeModel, views: EdgeViews) -> torch.Tensor:
-        """(N,) share of the views seeing a primitive's centre in which it lands on an edge pixel."""
-        means = model.means.detach().double().numpy()
-        seen = torch.zeros(len(model))
-        on_edge = torch.zeros(len(model))
-        for camera, mask in zip(views.pinholes, views.edge_masks):
-            pixels, inside = camera.pixels(means)
-            seen += torch.from_numpy(inside).float()
-            hit = torch.zeros(len(model), dtype=torch.bool)
-            hit[inside] = mask[pixels[inside, 1], pixels[inside, 0]]
-            on_edge += hit.float()
-        return on_edge / seen.clamp_min(1)
+        return edge_hit_share(model.means.detach().double().numpy(), views.pinholes, views.edge_masks)
 
     def _fisher_prune(self, model, optimizers, state, views: EdgeViews, keep_ratio: float) -> dict:
         scores = fisher_information(model.primitives(), views.cameras, self.raster)

@@ -29,6 +29,7 @@ from edgedog.renderer.rasterize import rasterize
 from edgedog.scenes import Scene
 from edgedog.train import losses
 from edgedog.train.config import TrainConfig, from_dict, to_dict
+from edgedog.train.layers import LowerLayers, keep_on_residual, lower_layer_config, residual_maps
 from edgedog.train.model import GROUPS, EdgeModel
 from edgedog.train.optim import Optimizers
 from edgedog.train.strategy import DensityStrategy, EdgeViews, StrategyState
@@ -62,8 +63,10 @@ class Snapshot:
 
     Attributes:
         step, epoch: where training was; loss: the last projection loss.
-        means (N, 3), scales (N, 3), quats (N, 4), opacity (N,), k_raw (N, 2): numpy copies.
+        means (N, 3), scales (N, 3), quats (N, 4), opacity (N,), k_raw (N, 2): numpy copies,
+            the fixed lower layers' primitives first.
         pruned_positions: (M, 3) centres removed by the last Fisher pruning.
+        layers: (N,) int64 layer index of each primitive (None: all in layer 0).
     """
 
     step: int
@@ -75,12 +78,13 @@ class Snapshot:
     opacity: np.ndarray
     k_raw: np.ndarray
     pruned_positions: np.ndarray
+    layers: np.ndarray | None = None
 
 
-def _finite_grads(model: EdgeModel) -> int:
+def _finite_grads(*models: EdgeModel) -> int:
     """Zero non-finite gradient entries (no NaN ever reaches the parameters); returns how many."""
     bad = 0
-    for tensor in model.tensors().values():
+    for tensor in (t for model in models for t in model.tensors().values()):
         if tensor.grad is not None:
             mask = ~torch.isfinite(tensor.grad)
             if mask.any():
@@ -89,16 +93,45 @@ def _finite_grads(model: EdgeModel) -> int:
     return bad
 
 
-class Trainer:
-    """Trains an EdgeModel on a scene's pseudo-edge maps; writes its run folder `out`."""
+def stack_snapshot(stack: LowerLayers, step: int = 0, epoch: int = 0, loss: float = float("nan"),
+                   pruned_positions: np.ndarray | None = None) -> Snapshot:
+    """A Snapshot (activated copies) of a whole layered model."""
+    m = stack.model.to_numpy()
+    opacity = 1 / (1 + np.exp(-m["opacity_logits"]))
+    pruned = np.zeros((0, 3), np.float32) if pruned_positions is None else pruned_positions.copy()
+    return Snapshot(step, epoch, loss, m["means"], np.exp(m["log_scales"]), m["quats"], opacity, m["k_raw"],
+                    pruned, stack.layers.numpy())
 
-    def __init__(self, scene: Scene, config: TrainConfig, out: Path, progress: bool = True):
+
+def read_stack(run_dir: Path) -> LowerLayers:
+    """The whole model of a run folder from its checkpoint: its lower layers and its own."""
+    path = Path(run_dir) / CHECKPOINT
+    if not path.is_file():
+        raise InputError(path, "no checkpoint (is this a run folder written by `edgedog train`?)")
+    saved = torch.load(path, weights_only=False)
+    lower = LowerLayers.from_numpy(saved["lower"]) if "lower" in saved else LowerLayers.empty()
+    model = EdgeModel(**{name: torch.from_numpy(saved["model"][name]) for name in GROUPS})
+    return lower.plus(model, from_dict(saved["config"]).layer)
+
+
+class Trainer:
+    """Trains an EdgeModel on a scene's pseudo-edge maps; writes its run folder `out`.
+
+    `lower`: for a layer above the first (config.layer > 0), the layers below it, rendered with
+    the model and kept fixed (or fine-tuned at `lower_lr_scale`). A resumed run takes them from
+    its checkpoint.
+    """
+
+    def __init__(self, scene: Scene, config: TrainConfig, out: Path, progress: bool = True,
+                 lower: LowerLayers | None = None):
         self.scene, self.config, self.out, self.progress = scene, config, Path(out), progress
         self.raster = RasterConfig(kernel=config.kernel, k_activation=config.k_activation)
         self.detector = self._edge_maps()
         self.cameras = [RasterCamera.from_camera(scene.camera(i)) for i in range(len(scene))]
         maps = [scene.load_edge_map(i, self.detector) for i in range(len(scene))]
         # Edge pixels (for the sampled loss and the projection cull) come from the maps as given.
+        if config.map_floor > 0:
+            maps = [np.where(m >= config.map_floor, m, 0).astype(np.float32) for m in maps]
         masks = [torch.from_numpy(m >= config.edge_threshold) for m in maps]
         if config.edge_profile == "thin":
             maps = [thin_edge_map(m, config.thin_sigma) for m in maps]
@@ -118,6 +151,8 @@ class Trainer:
         if (self.out / CHECKPOINT).is_file():
             self._load(self.out / CHECKPOINT)
         else:
+            self.lower = LowerLayers.empty() if lower is None else lower
+            self._bind_lower()
             self._initialise()
 
     # --- set-up
@@ -134,11 +169,23 @@ class Trainer:
         torch.manual_seed(c.seed)
         points = initialize(self.scene, c.init_method, detector=self.detector, seed=c.seed,
                             uniform_count=c.init_count, uniform_side=c.init_side)
+        if len(self.lower):
+            residuals = residual_maps(self.lower, self.cameras, self.targets, self.raster)
+            points = keep_on_residual(points, self.scene.cameras, residuals, c.edge_threshold,
+                                      c.residual_min_share)
         self.init_report = {"method": points.method, "points": len(points), **points.report}
         self.model = EdgeModel.from_points(points, c.init_opacity, c.k_init, self.generator)
         self.optimizers = Optimizers(self.model, c)
         self.state = self.strategy.initial_state(len(self.model))
         self.initial_count = len(self.model)
+
+    def _bind_lower(self) -> None:
+        """Lower layers are fixed, or fine-tuned by their own Adams at the scaled rates."""
+        tune = self.config.lower_lr_scale > 0 and len(self.lower) > 0
+        for tensor in self.lower.model.tensors().values():
+            tensor.requires_grad_(tune)
+        self.lower_optimizers = (Optimizers(self.lower.model, lower_layer_config(self.config))
+                                 if tune else None)
 
     # --- training
     @property
@@ -160,9 +207,11 @@ class Trainer:
         if position == 0:
             self._order = torch.randperm(len(self.cameras), generator=self.generator)
             self.optimizers.set_epoch(epoch)
+            if self.lower_optimizers is not None:
+                self.lower_optimizers.set_epoch(epoch)
             self._epoch_losses = []
         view = int(self._order[position])
-        out = rasterize(self.model.primitives(), self.cameras[view], self.raster)
+        out = rasterize(self.lower.stacked_with(self.model), self.cameras[view], self.raster)
         weight = None
         if c.pixel_uncertainty:
             weight = losses.uncertainty_weight(losses.depth_uncertainty(out.depth.detach()), weighting)
@@ -171,10 +220,12 @@ class Trainer:
             sample = losses.edge_and_background_sample(self.views.edge_masks[view], self.generator)
         loss = losses.projection_loss(out.image[..., 0], self.targets[view], weight, sample)
         loss.backward()
-        self.bad_gradients += _finite_grads(self.model)
-        self.strategy.after_backward(self.state, out)
-        self.optimizers.step()
-        self.optimizers.zero_grad()
+        self.bad_gradients += _finite_grads(self.model, self.lower.model)
+        self.strategy.after_backward(self.state, out, skip=len(self.lower))
+        for optimizers in (self.optimizers, self.lower_optimizers):
+            if optimizers is not None:
+                optimizers.step()
+                optimizers.zero_grad()
         self._epoch_losses.append(loss.item())
         if self.step_index % c.orientation_every == 0:
             self._orientation_losses(epoch)
@@ -235,11 +286,13 @@ class Trainer:
         self.write_outputs()
 
     # --- snapshots, checkpoints, outputs
+    def stack(self) -> LowerLayers:
+        """The lower layers with this run's model on top (detached): the whole layered model,
+        and the lower layers of the next layer."""
+        return self.lower.plus(self.model, self.config.layer)
+
     def snapshot(self, loss: float = float("nan")) -> Snapshot:
-        m = self.model.to_numpy()
-        opacity = 1 / (1 + np.exp(-m["opacity_logits"]))
-        return Snapshot(self.step_index, self.epoch, loss, m["means"], np.exp(m["log_scales"]), m["quats"],
-                        opacity, m["k_raw"], self.state.pruned_positions.copy())
+        return stack_snapshot(self.stack(), self.step_index, self.epoch, loss, self.state.pruned_positions)
 
     def save_checkpoint(self) -> Path:
         """Everything needed to continue exactly: model, Adam moments, strategy, random state."""
@@ -252,6 +305,8 @@ class Trainer:
             "history": self.history, "events": self.events, "seconds": self.seconds,
             "bad_gradients": self.bad_gradients, "init_report": self.init_report,
             "initial_count": self.initial_count, "detector": self.detector,
+            "lower": self.lower.to_numpy(),
+            "lower_optimizers": None if self.lower_optimizers is None else self.lower_optimizers.state_dict(),
         }
         return atomic_write(self.out / CHECKPOINT, lambda f: torch.save(payload, f))
 
@@ -264,6 +319,10 @@ class Trainer:
         self.optimizers = Optimizers(self.model, self.config)
         self.optimizers.load_state_dict(saved["optimizers"])
         self.state = StrategyState(saved["absgrad"], saved["pruned_positions"], saved["fisher"])
+        self.lower = LowerLayers.from_numpy(saved["lower"]) if "lower" in saved else LowerLayers.empty()
+        self._bind_lower()
+        if self.lower_optimizers is not None:
+            self.lower_optimizers.load_state_dict(saved["lower_optimizers"])
         self.generator.set_state(saved["generator"])
         torch.set_rng_state(saved["torch_rng"])
         np.random.set_state(saved["numpy_rng"])
@@ -274,15 +333,18 @@ class Trainer:
         self.init_report, self.initial_count = saved["init_report"], saved["initial_count"]
 
     def write_outputs(self) -> None:
-        """primitives.ply (all parameters), points.ply (centres, for `edgedog eval`), log.json."""
+        """primitives.ply (all parameters, with each primitive's layer), points.ply (centres, for
+        `edgedog eval`), log.json. Both PLYs hold the lower layers too: the whole layered model."""
         from edgedog.train.export import write_points, write_primitives
 
-        write_primitives(self.out / "primitives.ply", self.snapshot())
-        write_points(self.out / "points.ply", self.model.means.detach().numpy())
+        snapshot = self.snapshot()
+        write_primitives(self.out / "primitives.ply", snapshot)
+        write_points(self.out / "points.ply", snapshot.means)
         atomic_write_json(self.out / "log.json", {
             "scene": str(self.scene.root), "detector": self.detector, "config": to_dict(self.config),
             "init": self.init_report, "initial_primitives": self.initial_count,
-            "final_primitives": len(self.model), "train_seconds": round(self.seconds, 2),
+            "final_primitives": len(self.model), "lower_primitives": len(self.lower),
+            "train_seconds": round(self.seconds, 2),
             "peak_rss_mib": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1),
             "non_finite_gradients_zeroed": self.bad_gradients, "events": self.events,
             "history": self.history,

@@ -1,0 +1,96 @@
+"""`edgedog bench layers`: the multi-granularity model against the direct alternative (the
+paper's Fig. 7) — a layered run L0, L1, L2 and a single run on the finest level's maps, their
+per-layer and cumulative curves scored, a table and a figure of the levels.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+from edgedog.bench.ablation import train_and_extract
+from edgedog.bench.tables import cell
+from edgedog.edges.levels import Level
+from edgedog.errors import InputError
+from edgedog.files import atomic_write_bytes, atomic_write_json, read_json
+from edgedog.train.config import TrainConfig
+from edgedog.train.layered import (
+    LayeredRun,
+    extract_layered,
+    is_layered,
+    read_layered,
+    train_layered,
+    write_layered,
+)
+from edgedog.train.run_folder import RunFolder
+
+DIRECT = "direct"
+
+
+def layered_run(out: Path, scene_path: Path, preset_name: str, base: TrainConfig,
+                levels: tuple[Level, ...]) -> LayeredRun:
+    """OUT/layered: a new layered run, or the one an earlier bench left (which must match)."""
+    run = LayeredRun(out / "layered", scene_path.resolve(), preset_name, base, levels)
+    if is_layered(run.path):
+        if read_layered(run.path) != run:
+            raise InputError(run.path, "holds a layered run of another scene, config or levels; "
+                                       "choose another --out")
+    else:
+        write_layered(run)
+    return run
+
+
+def _row(name: str, primitives: int, report: dict) -> dict:
+    counts = report["counts"]
+    return {"selection": name, "primitives": primitives, "curves": counts["lines"] + counts["beziers"],
+            "metrics": report.get("metrics", {}).get("curves")}
+
+
+def run_layers_bench(scene_path: Path, out: Path, preset_name: str, base: TrainConfig,
+                     levels: tuple[Level, ...], progress: bool = True, figure: bool = True) -> dict:
+    """Train (or reuse) the layered run and the direct run, extract, score; write
+    OUT/layers.json, OUT/layers.md and (with `figure`) OUT/layers.png. Returns the results."""
+    from edgedog.scenes import load_scene
+
+    run = layered_run(out, scene_path, preset_name, base, levels)
+    scene = load_scene(run.scene, downscale=base.downscale)
+    train_layered(run, scene, progress=progress)
+    report = extract_layered(run, scene)
+    rows = [_row(name, s["primitives"], s) for name, s in report["selections"].items()]
+    finest = levels[-1]
+    direct_config = dataclasses.replace(base, detector=finest.detector, map_floor=finest.floor)
+    log, direct = train_and_extract(RunFolder(out / DIRECT, run.scene, preset_name, direct_config), progress)
+    rows.append(_row(f"direct ({finest.name} maps)", log["final_primitives"], direct))
+    results = {"scene": str(run.scene), "preset": preset_name,
+               "levels": [dataclasses.asdict(level) for level in levels], "rows": rows,
+               "train_seconds": {**{lv.name: _seconds(run.layer_dir(i)) for i, lv in enumerate(levels)},
+                                 DIRECT: log["train_seconds"]}}
+    if figure:
+        from edgedog.bench.layers_figure import render_layers_figure
+
+        render_layers_figure(run, scene, out / "layers.png")
+        results["figure"] = str(out / "layers.png")
+    atomic_write_json(out / "layers.json", results)
+    atomic_write_bytes(out / "layers.md", markdown(results).encode())
+    return results
+
+
+def _seconds(layer_dir: Path) -> float:
+    return read_json(layer_dir / "log.json")["train_seconds"]
+
+
+def markdown(results: dict) -> str:
+    """The table: each layer alone, each cumulative stack and the direct run."""
+    levels = ", ".join(f"{lv['name']} = {lv['detector']}"
+                       + (f" (floor {lv['floor']:g})" if lv["floor"] else "")
+                       for lv in results["levels"])
+    lines = [f"Levels: {levels}. Training seconds: "
+             + ", ".join(f"{k} {v:.0f}" for k, v in results["train_seconds"].items()) + ".", "",
+             "| selection | primitives | curves | Acc (mm) | Comp (mm) | P10 | R10 | F10 | F20 |",
+             "|---|---|---|---|---|---|---|---|---|"]
+    for row in results["rows"]:
+        m = row["metrics"] or {}
+        scores = [cell(m.get("acc_mm"), 2), cell(m.get("comp_mm"), 2)]
+        scores += [cell(m.get(k), 1) for k in ("precision_10mm", "recall_10mm", "fscore_10mm", "fscore_20mm")]
+        lines.append(f"| {row['selection']} | {row['primitives']} | {row['curves']} | {' | '.join(scores)} |")
+    return "\n".join(lines) + "\n"

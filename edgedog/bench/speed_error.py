@@ -1,0 +1,330 @@
+"""`edgedog bench speed-error`: how the error of the extracted curves falls as training time grows.
+
+Each budget (a preset, possibly at another resolution or with fewer epochs) trains once in
+OUT/<budget>/, an ordinary run folder. At evenly spaced epochs the trainer is paused, its curves
+are extracted and scored, and the row (training seconds so far, primitives, scores) is appended
+to OUT/<budget>/speed_error.json. OUT/speed_error.csv, .md and .png summarise every budget.
+
+Seconds are the trainer's own clock (steps and density control): checkpoints, extraction and
+scoring are not counted, so the numbers are what a plain `edgedog train` of that length costs.
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import io
+import math
+import random
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from edgedog.bench.tables import cell
+from edgedog.errors import ConfigError, InputError
+from edgedog.files import atomic_write_bytes, atomic_write_json, read_json
+from edgedog.train.config import TrainConfig, preset, with_epochs, with_overrides
+from edgedog.train.run_folder import RunFolder, check_same_run, write_run
+
+if TYPE_CHECKING:  # torch and the scene loaders load only when a bench runs
+    from edgedog.scenes import Scene
+    from edgedog.train.trainer import Trainer
+
+RESULT = "speed_error.json"
+"""A budget's evaluations, in its run folder."""
+SUMMARY = ("speed_error.csv", "speed_error.md", "speed_error.png")
+"""What the bench writes in OUT."""
+
+
+@dataclass(frozen=True)
+class Budget:
+    """A named amount of training: a preset, optionally at another downscale, or with a share
+    of its epochs (the whole schedule compressed with `with_epochs`)."""
+
+    name: str
+    preset: str
+    description: str
+    downscale: int | None = None
+    epoch_share: float = 1.0
+
+    def config(self, overrides: list[str]) -> TrainConfig:
+        """The preset with `overrides` (--set) applied, then this budget's own change: the name
+        stays true (fast-d4 trains at downscale 4 whatever --set says) and fast-50 has half the
+        epochs of whatever fast has."""
+        config = with_overrides(preset(self.preset), overrides)
+        if self.downscale is not None:
+            config = dataclasses.replace(config, downscale=self.downscale)
+        return with_epochs(config, max(1, round(config.epochs * self.epoch_share)))
+
+
+BUDGETS = {b.name: b for b in (
+    Budget("fast-d4", "fast", "preset fast at 1/4 resolution", downscale=4),
+    Budget("fast-50", "fast", "preset fast with half its epochs", epoch_share=0.5),
+    Budget("fast", "fast", "preset fast (100 epochs at 1/2 resolution)"),
+    Budget("paper", "paper", "preset paper (400 epochs at full resolution)"),
+)}
+DEFAULT_BUDGETS = "fast-d4,fast,paper"
+
+
+def parse_budgets(text: str) -> list[Budget]:
+    """Budgets from a comma-separated list of names (e.g. 'fast-d4,fast')."""
+    names = [name.strip() for name in text.split(",") if name.strip()]
+    unknown = [name for name in names if name not in BUDGETS]
+    if not names or unknown:
+        raise ConfigError(f"--budgets must list some of {', '.join(BUDGETS)}, got {text!r}")
+    return [BUDGETS[name] for name in dict.fromkeys(names)]
+
+
+def evaluation_epochs(epochs: int, count: int) -> list[int]:
+    """`count` epochs evenly spaced over a run of `epochs`, the last at the end (fewer when the
+    run is shorter than `count` epochs)."""
+    if count < 1:
+        raise ConfigError(f"--evals must be at least 1, got {count}")
+    return sorted({max(1, round(epochs * i / count)) for i in range(1, count + 1)})
+
+
+@dataclass(frozen=True)
+class EvalPoint:
+    """The model at one evaluation epoch.
+
+    seconds: training time so far (evaluation excluded); curves: lines + Béziers;
+    curve_scores, point_scores: `EdgeMetrics.to_dict()` of the curves and of the filtered
+    points, None when there was nothing to score.
+    """
+
+    epoch: int
+    seconds: float
+    primitives: int
+    curves: int
+    curve_scores: dict | None
+    point_scores: dict | None
+
+
+@dataclass
+class BudgetResult:
+    """One budget's evaluations so far, as saved in OUT/<budget>/speed_error.json.
+
+    resolution: the training images' size, e.g. '200x200'; eval_epochs: where the run is (to
+    be) evaluated; points: the evaluations done, in epoch order.
+    """
+
+    budget: str
+    epochs: int
+    resolution: str
+    eval_epochs: list[int]
+    points: list[EvalPoint]
+
+    @property
+    def finished(self) -> bool:
+        return [p.epoch for p in self.points] == self.eval_epochs
+
+    @classmethod
+    def from_dict(cls, data: dict) -> BudgetResult:
+        return cls(**{**data, "points": [EvalPoint(**p) for p in data["points"]]})
+
+
+def read_result(folder: Path, eval_epochs: list[int]) -> BudgetResult | None:
+    """The evaluations saved in `folder`, or None; an error when they were planned at other
+    epochs (another --evals or --set epochs)."""
+    path = folder / RESULT
+    if not path.is_file():
+        return None
+    result = BudgetResult.from_dict(read_json(path))
+    if result.eval_epochs != eval_epochs:
+        raise InputError(path, f"holds evaluations at epochs {result.eval_epochs}, not {eval_epochs}; "
+                               "use the same --evals, or another --out")
+    return result
+
+
+
+
+@contextmanager
+def preserved_random_state() -> Iterator[None]:
+    """Put torch's, numpy's and Python's global random states back on exit.
+
+    The trainer draws from its own generator, and extraction from local ones; this keeps a
+    later change to either from making an evaluated run train differently from a plain one
+    (the checkpoint carries the global states too)."""
+    import numpy as np
+    import torch
+
+    states = torch.get_rng_state(), np.random.get_state(), random.getstate()
+    try:
+        yield
+    finally:
+        torch.set_rng_state(states[0])
+        np.random.set_state(states[1])
+        random.setstate(states[2])
+
+
+def evaluate(trainer: Trainer, scene: Scene) -> EvalPoint:
+    """Checkpoint `trainer` (a resumed bench restarts from here), write its outputs, extract and
+    score its curves (RUN/extract.json); returns the evaluation point."""
+    from edgedog.curves.report import extract_with_report
+
+    trainer.save_checkpoint()
+    with preserved_random_state():
+        trainer.write_outputs()
+        _, report = extract_with_report(trainer.out, scene, trainer.detector)
+    metrics, counts = report["metrics"], report["counts"]
+    return EvalPoint(trainer.epoch, round(trainer.seconds, 3), len(trainer.model),
+                     counts["lines"] + counts["beziers"], metrics.get("curves"), metrics.get("points"))
+
+
+def run_budget(run: RunFolder, budget: str, evals: int, progress: bool) -> BudgetResult:
+    """Train `run` (or resume it, or reuse it when every evaluation is recorded), evaluating it
+    at `evals` evenly spaced epochs; returns its evaluations."""
+    from tqdm import tqdm
+
+    from edgedog.scenes import load_scene
+    from edgedog.train.trainer import CHECKPOINT, Trainer
+
+    check_same_run(run)
+    eval_epochs = evaluation_epochs(run.config.epochs, evals)
+    result = read_result(run.path, eval_epochs)
+    if result is not None and result.finished:
+        return result
+    scene = load_scene(run.scene, downscale=run.config.downscale)
+    if scene.ground_truth is None:
+        raise InputError(run.scene, "the speed-error bench needs a scene with ground truth")
+    write_run(run)
+    trainer = Trainer(scene, run.config, run.path, progress)
+    if result is None:
+        camera = scene.camera(0)
+        result = BudgetResult(budget, run.config.epochs, f"{camera.width}x{camera.height}", eval_epochs, [])
+    recorded = {p.epoch for p in result.points}
+    with tqdm(total=run.config.epochs * len(scene), initial=trainer.step_index, unit="step",
+              disable=not progress, desc=budget) as bar:
+        for epoch in (e for e in eval_epochs if e not in recorded):
+            if trainer.epoch > epoch:
+                raise InputError(run.path / CHECKPOINT, f"is past epoch {epoch}, which was never "
+                                                        f"evaluated; remove {run.path} to train it again")
+            while trainer.epoch < epoch:
+                trainer.step()
+                bar.update(1)
+            result.points.append(evaluate(trainer, scene))
+            atomic_write_json(run.path / RESULT, dataclasses.asdict(result))
+    return result
+
+
+def run_speed_error(scene_path: Path, out: Path, budgets: list[Budget], overrides: list[str],
+                    evals: int = 5, progress: bool = True) -> list[BudgetResult]:
+    """Train and evaluate every budget in out/<budget>/ (with `overrides` applied to each), and
+    write the summary files `SUMMARY` in `out` after each budget; returns the results."""
+    scene_path = Path(scene_path).resolve()
+    results = []
+    for budget in budgets:
+        run = RunFolder(out / budget.name, scene_path, budget.preset, budget.config(overrides))
+        results.append(run_budget(run, budget.name, evals, progress))
+        write_summary(out, scene_path.name, results)
+    return results
+
+
+# --- summary: CSV, Markdown, plot
+
+
+def _thresholds_mm() -> list[int]:
+    """The protocol's thresholds in mm (5, 10, 20); imported here to keep the CLI's start light."""
+    from edgedog.metrics import THRESHOLDS
+
+    return [round(tau * 1000) for tau in THRESHOLDS]
+
+
+def _chamfer(scores: dict | None) -> float | None:
+    return None if scores is None else (scores["acc_mm"] + scores["comp_mm"]) / 2
+
+
+def csv_rows(results: list[BudgetResult]) -> list[dict]:
+    """One flat row per budget and evaluation point (None where nothing was scored)."""
+    rates = [f"{kind}_{mm}mm" for mm in _thresholds_mm() for kind in ("precision", "recall", "fscore")]
+    rows = []
+    for result in results:
+        for p in result.points:
+            curves, points = p.curve_scores or {}, p.point_scores or {}
+            rows.append({"budget": result.budget, "epoch": p.epoch, "seconds": p.seconds,
+                         "primitives": p.primitives, "curves": p.curves, "acc_mm": curves.get("acc_mm"),
+                         "comp_mm": curves.get("comp_mm"), "chamfer_mm": _chamfer(p.curve_scores),
+                         **{key: curves.get(key) for key in rates},
+                         "points_acc_mm": points.get("acc_mm"), "points_comp_mm": points.get("comp_mm"),
+                         "points_fscore_10mm": points.get("fscore_10mm")})
+    return rows
+
+
+def csv_text(results: list[BudgetResult]) -> str:
+    rows = csv_rows(results)
+    buffer = io.StringIO()
+    writer = csv.DictWriter(buffer, fieldnames=list(rows[0]), lineterminator="\n")
+    writer.writeheader()
+    writer.writerows(rows)  # None is written as an empty cell
+    return buffer.getvalue()
+
+
+def _markdown_row(result: BudgetResult, p: EvalPoint) -> str:
+    s = p.curve_scores or {}
+    cells = [result.budget, result.resolution, f"{p.epoch}/{result.epochs}", f"{p.seconds:.1f}",
+             str(p.primitives), str(p.curves), cell(s.get("acc_mm"), 2), cell(s.get("comp_mm"), 2),
+             cell(_chamfer(p.curve_scores), 2)]
+    cells += [cell(s.get(f"fscore_{mm}mm"), 1) for mm in _thresholds_mm()]
+    cells.append(cell((p.point_scores or {}).get("fscore_10mm"), 1))
+    return "| " + " | ".join(cells) + " |"
+
+
+def markdown(results: list[BudgetResult], scene_name: str) -> str:
+    """Two Markdown tables for docs/BENCHMARKS.md: each budget at its end, then every point."""
+    columns = ["budget", "resolution", "epoch", "train (s)", "primitives", "curves", "Acc (mm)", "Comp (mm)",
+               "Chamfer (mm)", *(f"F{mm}" for mm in _thresholds_mm()), "points F10"]
+    head = ["| " + " | ".join(columns) + " |", "|" + "---|" * len(columns)]
+    final = [_markdown_row(r, r.points[-1]) for r in results if r.points]
+    every = [_markdown_row(r, p) for r in results for p in r.points]
+    return "\n".join([f"**Speed against error on {scene_name}: each budget at its end**", "", *head, *final,
+                      "", "**Along training**", "", *head, *every, ""])
+
+
+def plot_png(results: list[BudgetResult], scene_name: str) -> bytes:
+    """Two panels, F10 and Chamfer against training seconds, one line per budget; PNG bytes."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+    from matplotlib.ticker import LogLocator, ScalarFormatter
+
+    figure = Figure(figsize=(11, 4.5), layout="constrained")
+    FigureCanvasAgg(figure)
+    f_axis, chamfer_axis = figure.subplots(1, 2)
+    seconds_seen = []
+    for result in results:
+        seconds = [p.seconds for p in result.points]
+        seconds_seen += seconds
+        f10 = [(p.curve_scores or {}).get("fscore_10mm", math.nan) for p in result.points]
+        chamfer = [math.nan if p.curve_scores is None else _chamfer(p.curve_scores)
+                   for p in result.points]
+        f_axis.plot(seconds, f10, marker="o", label=result.budget)
+        chamfer_axis.plot(seconds, chamfer, marker="o", label=result.budget)
+    # Budgets differ by tens of times in cost: a log axis keeps the fast ones readable.
+    log_scale = max(seconds_seen) >= 10 * min(seconds_seen)
+    for axis, label in ((f_axis, "F-score at 10 mm (%)"), (chamfer_axis, "Chamfer, (Acc + Comp) / 2 (mm)")):
+        axis.set_xlabel("training time (s)")
+        axis.set_ylabel(label)
+        axis.grid(True, alpha=0.3)
+        axis.legend()
+        if log_scale:
+            axis.set_xscale("log")
+            # Plain seconds at the decades and a few steps between, no crowded minor labels.
+            axis.xaxis.set_major_formatter(ScalarFormatter())
+            axis.xaxis.set_minor_locator(LogLocator(subs=(2, 5)))
+            axis.xaxis.set_minor_formatter(ScalarFormatter())
+    f_axis.set_ylim(0, 100)
+    chamfer_axis.set_ylim(bottom=0)
+    figure.suptitle(f"Speed against error on {scene_name}")
+    buffer = io.BytesIO()
+    figure.savefig(buffer, format="png", dpi=110)
+    return buffer.getvalue()
+
+
+def write_summary(out: Path, scene_name: str, results: list[BudgetResult]) -> list[Path]:
+    """Write OUT/speed_error.csv, .md and .png atomically; returns their paths."""
+    csv_path, md_path, png_path = (out / name for name in SUMMARY)
+    atomic_write_bytes(csv_path, csv_text(results).encode())
+    atomic_write_bytes(md_path, markdown(results, scene_name).encode())
+    atomic_write_bytes(png_path, plot_png(results, scene_name))
+    return [csv_path, md_path, png_path]

@@ -1,0 +1,125 @@
+"""A layered run folder: progressive training of the levels, and per-layer / cumulative curves.
+
+Layout of RUN (each layer folder is an ordinary run folder, so `edgedog extract`, `export`,
+`studio` and `--resume` work on it; its primitives.ply holds the layers below it too):
+
+    RUN/layers.json             the scene, the preset, the levels and the base config
+    RUN/L0/, RUN/L1/, ...       one training run per layer, each started from the one below
+    RUN/curves/L1/              curves of layer L1's own primitives
+    RUN/curves/L0+L1/           curves of the cumulative model up to L1
+    RUN/layers_report.json      counts and scores of every selection
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from pathlib import Path
+
+from edgedog.curves.config import ExtractConfig
+from edgedog.curves.primitives import read_primitives
+from edgedog.edges.cache import attach_edge_maps
+from edgedog.edges.levels import Level
+from edgedog.errors import InputError
+from edgedog.files import atomic_write_json, read_json
+from edgedog.scenes import Scene
+from edgedog.train.config import TrainConfig, from_dict, to_dict
+from edgedog.train.layers import LowerLayers
+from edgedog.train.run_folder import RUN_CONFIG, RunFolder, write_run
+
+LAYERS_FILE = "layers.json"
+REPORT = "layers_report.json"
+
+
+@dataclass(frozen=True)
+class LayeredRun:
+    """path: the layered run folder; scene: the scene folder; preset: the preset named;
+    base: the config every layer starts from; levels: bottom first."""
+
+    path: Path
+    scene: Path
+    preset: str
+    base: TrainConfig
+    levels: tuple[Level, ...]
+
+    def layer_dir(self, index: int) -> Path:
+        return self.path / self.levels[index].name
+
+    def layer_config(self, index: int) -> TrainConfig:
+        level = self.levels[index]
+        return dataclasses.replace(self.base, detector=level.detector, map_floor=level.floor, layer=index)
+
+
+def is_layered(path: Path) -> bool:
+    return (Path(path) / LAYERS_FILE).is_file()
+
+
+def write_layered(run: LayeredRun) -> None:
+    atomic_write_json(run.path / LAYERS_FILE, {
+        "scene": str(run.scene), "preset": run.preset, "config": to_dict(run.base),
+        "levels": [dataclasses.asdict(level) for level in run.levels]})
+
+
+def read_layered(path: Path) -> LayeredRun:
+    data = read_json(Path(path) / LAYERS_FILE)
+    if not isinstance(data, dict) or not {"scene", "config", "levels"} <= data.keys():
+        raise InputError(Path(path) / LAYERS_FILE, "expected 'scene', 'config' and 'levels' keys")
+    levels = tuple(Level(**level) for level in data["levels"])
+    return LayeredRun(Path(path), Path(data["scene"]), data.get("preset", "paper"), from_dict(data["config"]),
+                      levels)
+
+
+def train_layered(run: LayeredRun, scene: Scene, progress: bool = True, on_layer=None) -> LowerLayers:
+    """Train the levels bottom up, each layer on its maps with the layers below fixed (finished
+    layers are reused, an interrupted one resumes). Returns the whole stack.
+
+    Args:
+        scene: loaded at the base config's resolution.
+        on_layer: called with (index, trainer) before each layer trains (e.g. to print).
+    """
+    from edgedog.train.trainer import Trainer
+
+    lower = None
+    for index in range(len(run.levels)):
+        folder, config = run.layer_dir(index), run.layer_config(index)
+        if not (folder / RUN_CONFIG).is_file():
+            write_run(RunFolder(folder, run.scene, run.preset, config))
+        trainer = Trainer(scene, config, folder, progress=progress, lower=lower)
+        if on_layer is not None:
+            on_layer(index, trainer)
+        if not trainer.done or not (folder / "log.json").is_file():
+            trainer.run()
+        lower = trainer.stack()
+    return lower
+
+
+def selections(count: int) -> list[tuple[str, set[int]]]:
+    """(name, layers) of each layer alone and of each cumulative stack: L0, L1, L0+L1, L2, L0+L1+L2."""
+    chosen = []
+    for top in range(count):
+        chosen.append((f"L{top}", {top}))
+        if top:
+            chosen.append(("+".join(f"L{i}" for i in range(top + 1)), set(range(top + 1))))
+    return chosen
+
+
+def extract_layered(run: LayeredRun, scene: Scene, config: ExtractConfig = ExtractConfig()) -> dict:
+    """Curves of every selection (each layer alone, each cumulative stack) into RUN/curves/NAME,
+    with their reports gathered in RUN/layers_report.json.
+
+    The projection filter of a selection uses the maps of its finest layer.
+    """
+    from edgedog.curves.report import extract_with_report
+
+    top = run.layer_dir(len(run.levels) - 1)
+    counts = read_primitives(top / "primitives.ply").layers
+    report = {"levels": [dataclasses.asdict(level) for level in run.levels], "selections": {}}
+    for name, layers in selections(len(run.levels)):
+        finest = run.layer_dir(max(layers))
+        detector = read_json(finest / "log.json")["detector"]
+        attach_edge_maps(scene, detector)
+        _, selection = extract_with_report(top, scene, detector, config, layers, run.path / "curves" / name)
+        selection["primitives"] = int(sum((counts == i).sum() for i in layers))
+        report["selections"][name] = selection
+    atomic_write_json(run.path / REPORT, report)
+    return report
