@@ -8,6 +8,7 @@ import sys
 from edgedog import __version__
 from edgedog.commands import (
     bench,
+    calibrate,
     demo,
     edges,
     evaluate,
@@ -22,7 +23,8 @@ from edgedog.commands import (
 )
 from edgedog.errors import EdgeDogError
 
-COMMANDS = (info, edges, init, sfm, train, extract, export, evaluate, bench, demo, make_scene, studio)
+COMMANDS = (info, edges, calibrate, init, sfm, train, extract, export, evaluate, bench, demo, make_scene,
+            studio)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -231,7 +231,8 @@ def test_layers_bench_compares_the_stack_with_the_direct_run(builtin_scene_dir, 
     table = (tmp_path / "layers.md").read_text()
     assert table == markdown(results) and "| direct (L1 maps) |" in table
     stamp = (tmp_path / "direct" / "checkpoint.pt").stat().st_mtime_ns
-    again = run_layers_bench(builtin_scene_dir, tmp_path, "fast", config, levels, progress=False, figure=False)
+    again = run_layers_bench(builtin_scene_dir, tmp_path, "fast", config, levels, progress=False,
+                             figure=False)
     assert again["rows"] == results["rows"]
     assert (tmp_path / "direct" / "checkpoint.pt").stat().st_mtime_ns == stamp  # reused, not retrained
     with pytest.raises(InputError, match="another scene, config or levels"):

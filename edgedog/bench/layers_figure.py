@@ -6,6 +6,7 @@ row the extracted curves, all from one training camera (EGL, no display needed).
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import cv2
@@ -15,6 +16,7 @@ from edgedog.curve_files import curve_polylines, read_edges
 from edgedog.files import atomic_write
 from edgedog.renderer.config import RasterConfig
 from edgedog.scenes import Scene
+from edgedog.scenes.camera import Camera
 from edgedog.scenes.images import to_u8
 from edgedog.train.layered import LayeredRun
 from edgedog.train.trainer import read_stack, stack_snapshot
@@ -38,12 +40,29 @@ def _label(panel: np.ndarray, text: str) -> np.ndarray:
     return panel
 
 
+def framed(camera: Camera, points: np.ndarray, fill: float = 0.85) -> Camera:
+    """The camera zoomed (focal lengths scaled, principal point moved) so that the central 98 %
+    of the projections of points (N, 3) fill `fill` of the image."""
+    uv, depth = camera.project(points)
+    uv = uv[depth > 0]
+    if len(uv) < 2:
+        return camera
+    lo, hi = np.percentile(uv, 1, axis=0), np.percentile(uv, 99, axis=0)
+    extent = np.maximum(hi - lo, 1e-6)
+    zoom = fill * min(camera.width / extent[0], camera.height / extent[1])
+    K = camera.K.copy()
+    K[:2, :2] *= zoom
+    K[:2, 2] = np.array([camera.width, camera.height]) / 2 - zoom * ((lo + hi) / 2 - camera.K[:2, 2])
+    return dataclasses.replace(camera, K=K)
+
+
 def render_layers_figure(run: LayeredRun, scene: Scene, out: Path, view: int = 0, size: int = 400,
-                         gain: float = 3.0) -> Path:
+                         gain: float = 1.5) -> Path:
     """Write the figure as a PNG at `out` (atomically) and return its path.
 
     Args:
-        view: the training camera the model is seen from (scaled to `size` pixels wide).
+        view: the training camera the model is seen from (scaled to `size` pixels wide and
+            zoomed onto the model).
         gain: splat intensities are multiplied by this so that faint layers stay visible.
     """
     from edgedog.renderer.gl.context import offscreen_context
@@ -54,6 +73,7 @@ def render_layers_figure(run: LayeredRun, scene: Scene, out: Path, view: int = 0
     camera = scene.camera(view)
     camera = camera.scaled(size, round(camera.height * size / camera.width))
     stack = read_stack(run.layer_dir(len(run.levels) - 1))
+    camera = framed(camera, stack.model.means.detach().double().numpy())
     raster = RasterConfig(kernel=run.base.kernel, k_activation=run.base.k_activation)
     ctx = offscreen_context()
     target = OffscreenTarget(ctx, camera.width, camera.height)
