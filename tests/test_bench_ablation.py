@@ -62,3 +62,15 @@ def test_weighting_table_trains_scores_and_reuses_its_runs(builtin_scene_dir, tm
     assert again == results
     assert stamps == {run: (tmp_path / run / "log.json").stat().st_mtime_ns for run in runs}
     assert markdown(again) == table
+
+
+def test_correction_rows_get_their_own_runs_and_a_skipped_row_says_why():
+    from edgedog.bench.ablation import CORRECTIONS, correction_rows
+
+    base = preset("fast")
+    names = [run_name(effective_config(dataclasses.replace(base, **row.changes)))
+             for row in correction_rows()]
+    assert len(set(names)) == 5 and names[0] == "dog_pix-exp_fisher" and "dog_pix-exp_fisher_learned" in names
+    table = markdown([{"table": CORRECTIONS, "label": "shift by the detector's calibration", "run": names[1],
+                       "skipped": "no calibration of detector 'x'"}])
+    assert "| shift by the detector's calibration | skipped: no calibration of detector 'x' |" in table

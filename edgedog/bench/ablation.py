@@ -1,6 +1,6 @@
-"""`edgedog bench ablation`: the paper's Table 3 (EdgeDoG's components, baseline to full) and
-Table 4 (pixel-uncertainty weighting functions), each row a training run whose extracted curves
-are scored against the ground truth.
+"""`edgedog bench ablation`: the paper's Table 3 (EdgeDoG's components, baseline to full),
+Table 4 (pixel-uncertainty weighting functions) and the corrections of the pseudo-edge maps'
+bias, each row a training run whose extracted curves are scored against the ground truth.
 
 Rows whose configurations train identically (weighting 1 with the pixel-level term on is the
 same loss as with it off) share one run, so a table never reports two numbers for one model.
@@ -13,14 +13,17 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from edgedog.bench.tables import cell
-from edgedog.errors import InputError
+from edgedog.errors import ConfigError, InputError
 from edgedog.files import atomic_write_bytes, atomic_write_json, read_json
 from edgedog.train.config import TrainConfig
 from edgedog.train.run_folder import RunFolder, check_same_run, write_run
 
 COMPONENTS = "components"
 WEIGHTING = "weighting"
-TABLES = (COMPONENTS, WEIGHTING)
+CORRECTIONS = "corrections"
+TABLES = (COMPONENTS, WEIGHTING, CORRECTIONS)
+TITLES = {COMPONENTS: "Components (Table 3)", WEIGHTING: "Weighting of the pixel uncertainty (Table 4)",
+          CORRECTIONS: "Corrections of the maps' bias (map shift: px at the training resolution)"}
 
 
 @dataclass(frozen=True)
@@ -55,6 +58,17 @@ def weighting_rows() -> list[AblationRow]:
             for name, label in names.items()]
 
 
+def correction_rows() -> list[AblationRow]:
+    """The full model on the raw maps and with each correction of the maps' bias."""
+    rows = {"raw maps": {}, "shift by the detector's calibration": {"map_correction": "calibrated"},
+            "shift learned with the primitives": {"map_correction": "learned"},
+            "thinned (NMS + narrow profile)": {"edge_profile": "thin"},
+            "profile loss (render blurred to the band)": {"edge_profile": "profile"}}
+    return [AblationRow(CORRECTIONS, label, {"kernel": "dog", "pixel_uncertainty": True,
+                                             "primitive_uncertainty": True, **changes})
+            for label, changes in rows.items()]
+
+
 def effective_config(config: TrainConfig) -> TrainConfig:
     """The config with settings that cannot change training normalised away (for sharing runs)."""
     if config.pixel_uncertainty and config.weighting == "one":
@@ -72,6 +86,8 @@ def run_name(config: TrainConfig) -> str:
     """A folder name for a run, from the components it uses."""
     parts = [config.kernel, f"pix-{config.weighting}" if config.pixel_uncertainty else "nopix",
              "fisher" if config.primitive_uncertainty else "nofisher"]
+    parts += [config.map_correction] if config.map_correction != "none" else []
+    parts += [config.edge_profile] if config.edge_profile != "raw" else []
     return "_".join(parts)
 
 
@@ -100,45 +116,56 @@ def run_ablation(scene_path: Path, out: Path, preset_name: str, base: TrainConfi
     """Train and score every row of the chosen tables (runs shared where configs coincide) in
     out/<run name>/; `base` is the preset `preset_name` with any overrides. Writes
     out/ablation.json and out/ablation.md; returns the rows' results."""
-    rows = [r for r in component_rows() + weighting_rows() if r.table in tables]
+    rows = [r for r in component_rows() + weighting_rows() + correction_rows() if r.table in tables]
     results = []
     for row in rows:
         config = effective_config(dataclasses.replace(base, **row.changes))
         folder = out / run_name(config)
         run = RunFolder(folder, scene_path.resolve(), preset_name, config)
-        log, report = train_and_extract(run, progress)
+        try:
+            log, report = train_and_extract(run, progress)
+        except ConfigError as error:  # e.g. no calibration record for these maps' detector
+            results.append({"table": row.table, "label": row.label, "run": folder.name,
+                            "skipped": str(error)})
+            write_report(out, results)
+            continue
         if "metrics" not in report:
             raise InputError(scene_path, "the ablation needs a scene with ground truth")
         results.append({"table": row.table, "label": row.label, "run": folder.name,
                         "metrics": report["metrics"].get("curves"),  # None: no curve to score
                         "points_fscore_10mm": report["metrics"].get("points", {}).get("fscore_10mm"),
                         "curves": report["counts"]["lines"] + report["counts"]["beziers"],
-                        "train_seconds": log["train_seconds"], "primitives": log["final_primitives"]})
+                        "train_seconds": log["train_seconds"], "primitives": log["final_primitives"],
+                        "map_shift_px": log.get("map_shift_px")})
         write_report(out, results)
     return results
 
 
 def markdown(results: list[dict]) -> str:
-    """The two tables as Markdown, rows in the order given."""
+    """The tables as Markdown, rows in the order given; a skipped row says why."""
     lines = []
     for table in TABLES:
         rows = [r for r in results if r["table"] == table]
         if not rows:
             continue
-        title = {COMPONENTS: "Components (Table 3)",
-                 WEIGHTING: "Weighting of the pixel uncertainty (Table 4)"}[table]
-        lines += [f"**{title}**", "",
+        shifts = table == CORRECTIONS
+        lines += [f"**{TITLES[table]}**", "",
                   "| row | R5 | P5 | F5 | F10 | F20 | Acc (mm) | Comp (mm) | points F10 | curves | train (s) "
-                  "| primitives |",
-                  "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+                  "| primitives |" + (" map shift (px) |" if shifts else ""),
+                  "|---|---|---|---|---|---|---|---|---|---|---|---|" + ("---|" if shifts else "")]
         for r in rows:
+            if "skipped" in r:
+                lines.append(f"| {r['label']} | skipped: {r['skipped']} |")
+                continue
             m = r["metrics"] or {}
             scores = [cell(m.get(key), 1) for key in
                       ("recall_5mm", "precision_5mm", "fscore_5mm", "fscore_10mm", "fscore_20mm")]
             scores += [cell(m.get("acc_mm"), 2), cell(m.get("comp_mm"), 2),
                        cell(r["points_fscore_10mm"], 1)]
+            shift = r.get("map_shift_px") or [0.0, 0.0]
             lines.append(f"| {r['label']} | {' | '.join(scores)} | {r['curves']} | "
-                         f"{r['train_seconds']:.0f} | {r['primitives']} |")
+                         f"{r['train_seconds']:.0f} | {r['primitives']} |"
+                         + (f" {shift[0]:+.2f}, {shift[1]:+.2f} |" if shifts else ""))
         lines.append("")
     return "\n".join(lines)
 

@@ -33,7 +33,8 @@ def add_parser(subparsers) -> None:
     edges.add_argument("--json", type=Path, default=None, help="also write the result here")
     edges.set_defaults(run=run_edges)
     ablation = kinds.add_parser(
-        "ablation", help="EdgeDoG's components and weighting functions (the paper's Tables 3 and 4)",
+        "ablation", help="EdgeDoG's components, weighting functions (the paper's Tables 3 and 4) and "
+                         "corrections of the maps' bias",
         description="Train one run per row (baseline to full model; each weighting w(Up)), extract "
                     "and score its curves, and write OUT/ablation.json and OUT/ablation.md. Finished "
                     "runs in OUT are reused, unfinished ones resumed.")
@@ -43,7 +44,8 @@ def add_parser(subparsers) -> None:
     ablation.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                           help="override a training setting for every row (repeatable)")
     ablation.add_argument("--tables", default="components,weighting",
-                          help="comma-separated: components (Table 3), weighting (Table 4)")
+                          help="comma-separated: components (Table 3), weighting (Table 4), corrections "
+                               "(the maps' bias: calibrated shift, learned shift, thin maps, profile loss)")
     ablation.add_argument("--quiet", action="store_true", help="no progress bars")
     ablation.set_defaults(run=run_ablation)
     layers = kinds.add_parser(

@@ -55,11 +55,25 @@ class TrainConfig:
 
     map_floor: float = 0.0
     """Map values below this are set to zero: a coarse layer keeps only the strong edges."""
-    edge_profile: Literal["raw", "thin"] = "raw"
+    map_correction: Literal["none", "calibrated", "shift", "learned"] = "none"
+    """Correct the maps' sub-pixel offset: 'calibrated' shifts them by the correction of their
+    detector's record (`edgedog calibrate-detector`); 'shift' by `map_shift`; 'learned' fits
+    one 2D shift of all maps jointly with the primitives, from `map_shift_from_epoch` on."""
+    map_shift: tuple[float, float] = (0.0, 0.0)
+    """The shift of 'shift' in px of the maps as stored (x right, y down: content moves by it)."""
+    map_shift_from_epoch: int = 100
+    """'learned': the shift is fitted once the primitives have settled (from this epoch)."""
+    lr_map_shift: float = 0.002
+    """'learned': Adam's learning rate of the shift, px per step."""
+    edge_profile: Literal["raw", "thin", "profile"] = "raw"
     """'raw': fit the maps as they are; 'thin': fit their ridge drawn with a narrow Gaussian
-    profile (edgedog.edges.thin), which removes the bias of thick, asymmetric detector bands."""
+    profile (edgedog.edges.thin), which removes the bias of thick, asymmetric detector bands;
+    'profile': fit the render blurred by `profile_sigma` (the band's measured width) to the maps,
+    so that thin primitives explain a thick band."""
     thin_sigma: float = 0.7
     """Width (px, standard deviation) of the 'thin' profile."""
+    profile_sigma: float = 1.0
+    """'profile': standard deviation (px at the training resolution) of the render's blur."""
 
     # --- losses
     edge_threshold: float = 0.5
@@ -134,8 +148,13 @@ class TrainConfig:
             raise ConfigError(f"weighting must be one, exp_neg, one_minus, up or exp, got {self.weighting!r}")
         if self.kernel not in ("dog", "gaussian"):
             raise ConfigError(f"kernel must be dog or gaussian, got {self.kernel!r}")
-        if self.edge_profile not in ("raw", "thin"):
-            raise ConfigError(f"edge_profile must be raw or thin, got {self.edge_profile!r}")
+        if self.edge_profile not in ("raw", "thin", "profile"):
+            raise ConfigError(f"edge_profile must be raw, thin or profile, got {self.edge_profile!r}")
+        if self.map_correction not in ("none", "calibrated", "shift", "learned"):
+            raise ConfigError(f"map_correction must be none, calibrated, shift or learned, "
+                              f"got {self.map_correction!r}")
+        if self.profile_sigma <= 0 or len(self.map_shift) != 2:
+            raise ConfigError("profile_sigma must be positive and map_shift two numbers (dx, dy)")
         if self.layer < 0 or self.lower_lr_scale < 0:
             raise ConfigError("layer and lower_lr_scale must not be negative")
         if self.epochs < 1 or self.downscale < 1:

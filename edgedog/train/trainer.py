@@ -18,8 +18,8 @@ import torch
 from tqdm import tqdm
 
 from edgedog.edges.cache import ensure_edge_maps
+from edgedog.edges.correct import blur_to_profile
 from edgedog.edges.registry import make_detector
-from edgedog.edges.thin import thin_edge_map
 from edgedog.errors import InputError
 from edgedog.files import atomic_write, atomic_write_json
 from edgedog.init import initialize
@@ -33,6 +33,7 @@ from edgedog.train.layers import LowerLayers, keep_on_residual, lower_layer_conf
 from edgedog.train.model import GROUPS, EdgeModel
 from edgedog.train.optim import Optimizers
 from edgedog.train.strategy import DensityStrategy, EdgeViews, StrategyState
+from edgedog.train.targets import LearnedShift, fixed_shift, prepare_maps
 
 CHECKPOINT = "checkpoint.pt"
 GEOMETRY_GROUPS = ("means", "log_scales", "quats")  # what the orientation losses move
@@ -128,15 +129,12 @@ class Trainer:
         self.raster = RasterConfig(kernel=config.kernel, k_activation=config.k_activation)
         self.detector = self._edge_maps()
         self.cameras = [RasterCamera.from_camera(scene.camera(i)) for i in range(len(scene))]
-        maps = [scene.load_edge_map(i, self.detector) for i in range(len(scene))]
-        # Edge pixels (for the sampled loss and the projection cull) come from the maps as given.
-        if config.map_floor > 0:
-            maps = [np.where(m >= config.map_floor, m, 0).astype(np.float32) for m in maps]
-        masks = [torch.from_numpy(m >= config.edge_threshold) for m in maps]
-        if config.edge_profile == "thin":
-            maps = [thin_edge_map(m, config.thin_sigma) for m in maps]
+        self.map_shift = fixed_shift(config, scene, self.detector, self.own_maps)
+        maps, masks = prepare_maps([scene.load_edge_map(i, self.detector) for i in range(len(scene))], config,
+                                   self.map_shift)
         self.targets = [torch.from_numpy(m) for m in maps]
-        self.views = EdgeViews(self.cameras, scene.cameras, masks)
+        self.views = EdgeViews(self.cameras, scene.cameras, [torch.from_numpy(m) for m in masks])
+        self.learned_shift = LearnedShift(config) if config.map_correction == "learned" else None
         self.strategy = DensityStrategy(config, self.raster)
         self.controls = Controls(config.keep_ratio, config.weighting)
         self.generator = torch.Generator().manual_seed(config.seed)
@@ -157,7 +155,10 @@ class Trainer:
 
     # --- set-up
     def _edge_maps(self) -> str:
+        """The name of the maps to fit (computed now when needed); sets `own_maps`: whether they
+        are the scene's own maps rather than computed by edgedog."""
         wanted = self.config.detector
+        self.own_maps = wanted in self.scene.detectors or (wanted == "auto" and bool(self.scene.detectors))
         if wanted in self.scene.detectors:
             return wanted
         if wanted == "auto" and self.scene.detectors:
@@ -218,11 +219,16 @@ class Trainer:
         sample = None
         if epoch >= c.sampled_loss_from_epoch and self.step_index % c.sampled_loss_every == 0:
             sample = losses.edge_and_background_sample(self.views.edge_masks[view], self.generator)
-        loss = losses.projection_loss(out.image[..., 0], self.targets[view], weight, sample)
+        render, target = out.image[..., 0], self.targets[view]
+        if c.edge_profile == "profile":
+            render = blur_to_profile(render, c.profile_sigma)
+        if self.learned_shift is not None:
+            target = self.learned_shift.target(target, epoch)
+        loss = losses.projection_loss(render, target, weight, sample)
         loss.backward()
         self.bad_gradients += _finite_grads(self.model, self.lower.model)
         self.strategy.after_backward(self.state, out, skip=len(self.lower))
-        for optimizers in (self.optimizers, self.lower_optimizers):
+        for optimizers in (self.optimizers, self.lower_optimizers, self.learned_shift):
             if optimizers is not None:
                 optimizers.step()
                 optimizers.zero_grad()
@@ -307,6 +313,7 @@ class Trainer:
             "initial_count": self.initial_count, "detector": self.detector,
             "lower": self.lower.to_numpy(),
             "lower_optimizers": None if self.lower_optimizers is None else self.lower_optimizers.state_dict(),
+            "learned_shift": None if self.learned_shift is None else self.learned_shift.state_dict(),
         }
         return atomic_write(self.out / CHECKPOINT, lambda f: torch.save(payload, f))
 
@@ -323,6 +330,8 @@ class Trainer:
         self._bind_lower()
         if self.lower_optimizers is not None:
             self.lower_optimizers.load_state_dict(saved["lower_optimizers"])
+        if self.learned_shift is not None:
+            self.learned_shift.load_state_dict(saved["learned_shift"])
         self.generator.set_state(saved["generator"])
         torch.set_rng_state(saved["torch_rng"])
         np.random.set_state(saved["numpy_rng"])
@@ -331,6 +340,12 @@ class Trainer:
         self.history, self.events = saved["history"], saved["events"]
         self.seconds, self.bad_gradients = saved["seconds"], saved["bad_gradients"]
         self.init_report, self.initial_count = saved["init_report"], saved["initial_count"]
+
+    def shift_px(self) -> list[float]:
+        """The maps' total correction shift (dx, dy) in px at the training resolution: the fixed
+        one ('shift', 'calibrated') and the fitted one ('learned')."""
+        learned = [0.0, 0.0] if self.learned_shift is None else self.learned_shift.value()
+        return [round(f + g, 4) for f, g in zip(self.map_shift, learned)]
 
     def write_outputs(self) -> None:
         """primitives.ply (all parameters, with each primitive's layer), points.ply (centres, for
@@ -344,6 +359,7 @@ class Trainer:
             "scene": str(self.scene.root), "detector": self.detector, "config": to_dict(self.config),
             "init": self.init_report, "initial_primitives": self.initial_count,
             "final_primitives": len(self.model), "lower_primitives": len(self.lower),
+            "map_shift_px": self.shift_px(),
             "train_seconds": round(self.seconds, 2),
             "peak_rss_mib": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1),
             "non_finite_gradients_zeroed": self.bad_gradients, "events": self.events,

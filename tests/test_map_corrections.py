@@ -1,0 +1,97 @@
+"""Map corrections in training: fixed shifts, the shift fitted with the primitives, the profile
+loss, and their bookkeeping in checkpoints and logs."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import numpy as np
+import pytest
+import torch
+
+from edgedog.edges.correct import shift_edge_map
+from edgedog.errors import ConfigError
+from edgedog.scenes import load_scene
+from edgedog.train.config import preset
+from edgedog.train.targets import LearnedShift, prepare_maps
+from edgedog.train.trainer import Trainer
+
+
+def tiny_config(**changes):
+    base = dataclasses.replace(preset("fast"), downscale=4, epochs=4, init_count=300, init_side=0.8,
+                               init_method="uniform", duplicate_epochs=(), cull_projection_epochs=(),
+                               cull_opacity_epochs=(), fisher_every=100, opacity_from_epoch=0,
+                               checkpoint_every=2, map_shift_from_epoch=1)
+    return dataclasses.replace(base, **changes)
+
+
+@pytest.fixture
+def box(builtin_scene_dir):
+    scene = load_scene(builtin_scene_dir, downscale=4)
+    scene.views = scene.views[::5]
+    return scene
+
+
+def vertical_line(width: int = 40, x: float = 20.0) -> np.ndarray:
+    columns = np.arange(width, dtype=np.float32)
+    return np.tile(np.exp(-0.5 * (columns - x) ** 2), (30, 1)).astype(np.float32)
+
+
+def test_prepared_maps_are_floored_then_shifted_and_masked():
+    line = vertical_line()
+    config = tiny_config(map_floor=0.5)
+    (target,), (mask,) = prepare_maps([line], config, (1.5, 0.0))
+    assert np.argmax(target[10]) in (21, 22) and target[10, 20] < line[10, 20]
+    assert mask[10].sum() == (target[10] >= 0.5).sum()
+    (thin,), _ = prepare_maps([line], dataclasses.replace(config, edge_profile="thin"), (0.0, 0.0))
+    assert np.argmax(thin[10]) == 20
+
+
+def test_the_learned_shift_finds_a_known_offset():
+    line = torch.from_numpy(vertical_line(x=20.0))
+    render = torch.from_numpy(shift_edge_map(vertical_line(x=20.0), -0.8, 0.0))  # where the truth is
+    learned = LearnedShift(dataclasses.replace(tiny_config(), lr_map_shift=0.02, map_shift_from_epoch=0))
+    for _ in range(300):
+        loss = (learned.target(line, epoch=0) - render).abs().mean()
+        loss.backward()
+        learned.step()
+        learned.zero_grad()
+    dx, dy = learned.value()
+    assert dx == pytest.approx(-0.8, abs=0.1) and dy == pytest.approx(0.0, abs=0.1)
+
+
+def test_learned_shift_trains_resumes_exactly_and_is_logged(box, tmp_path):
+    config = tiny_config(map_correction="learned")
+    whole = Trainer(box, config, tmp_path / "whole", progress=False)
+    whole.run()
+    assert whole.learned_shift.value() != [0.0, 0.0]
+    part = Trainer(box, config, tmp_path / "part", progress=False)
+    while part.epoch < 2:
+        part.step()
+    resumed = Trainer(box, config, tmp_path / "part", progress=False)
+    resumed.run()
+    assert resumed.learned_shift.value() == whole.learned_shift.value()
+    torch.testing.assert_close(resumed.model.means, whole.model.means, rtol=0, atol=0)
+    log = json.loads((tmp_path / "whole" / "log.json").read_text())
+    assert log["map_shift_px"] == [round(v, 4) for v in whole.learned_shift.value()]
+
+
+def test_fixed_shifts_and_the_profile_loss(box, tmp_path):
+    shifted = Trainer(box, tiny_config(map_correction="shift", map_shift=(2.0, -1.0), epochs=1),
+                      tmp_path / "shift", progress=False)
+    # The box's own maps are stored at 400 px and trained at 100 px: the shift is divided by 4.
+    assert shifted.map_shift == (0.5, -0.25)
+    original = box.load_edge_map(0, shifted.detector)
+    np.testing.assert_allclose(shifted.targets[0].numpy(), shift_edge_map(original, 0.5, -0.25), atol=1e-6)
+    profile = Trainer(box, tiny_config(edge_profile="profile", profile_sigma=1.5, epochs=1), tmp_path / "p",
+                      progress=False)
+    profile.run()
+    assert np.isfinite(profile.snapshot().means).all()
+
+
+def test_calibrated_needs_a_record(box, tmp_path, monkeypatch):
+    monkeypatch.setenv("EDGEDOG_CACHE", str(tmp_path / "cache"))
+    with pytest.raises(ConfigError, match="calibrate-detector --detector canny"):
+        Trainer(box, tiny_config(map_correction="calibrated", detector="canny"), tmp_path / "c",
+                progress=False)
