@@ -77,18 +77,20 @@ def train_layered(run: LayeredRun, scene: Scene, progress: bool = True, on_layer
         scene: loaded at the base config's resolution.
         on_layer: called with (index, trainer) before each layer trains (e.g. to print).
     """
-    from edgedog.train.trainer import Trainer
+    from edgedog.train.trainer import Trainer, read_stack
 
     lower = None
     for index in range(len(run.levels)):
         folder, config = run.layer_dir(index), run.layer_config(index)
+        if (folder / "log.json").is_file():  # finished: its checkpoint holds the whole stack
+            lower = read_stack(folder)
+            continue
         if not (folder / RUN_CONFIG).is_file():
             write_run(RunFolder(folder, run.scene, run.preset, config))
         trainer = Trainer(scene, config, folder, progress=progress, lower=lower)
         if on_layer is not None:
             on_layer(index, trainer)
-        if not trainer.done or not (folder / "log.json").is_file():
-            trainer.run()
+        trainer.run()
         lower = trainer.stack()
     return lower
 
