@@ -16,12 +16,12 @@ from edgedog.app.layers import layer_members, list_new_layers, visible_subset
 from edgedog.renderer.config import RasterConfig
 from edgedog.renderer.primitives import RasterCamera
 from edgedog.renderer.rasterize import rasterize
+from tiny_runs import every_fifth_view, tiny_config
 
 from edgedog.edges.levels import CANNY_LEVELS, PIDINET_LEVELS, parse_level, resolve_levels
 from edgedog.edges.registry import make_detector
 from edgedog.errors import ConfigError
 from edgedog.scenes import load_scene
-from edgedog.train.config import preset
 from edgedog.train.layers import LowerLayers
 from edgedog.train.model import GROUPS
 from edgedog.train.trainer import Trainer, read_stack
@@ -35,19 +35,11 @@ TINY = ["--set", "epochs=3", "--set", "downscale=4", "--set", "init_count=400", 
 
 
 
-def tiny_config(**changes):
-    base = dataclasses.replace(preset("fast"), downscale=4, epochs=2, init_count=300, init_side=0.8,
-                               init_method="uniform", duplicate_epochs=(), cull_projection_epochs=(),
-                               cull_opacity_epochs=(), fisher_every=100, opacity_from_epoch=0,
-                               checkpoint_every=2, snapshot_every=5)
-    return dataclasses.replace(base, **changes)
 
 
 @pytest.fixture
 def box(builtin_scene_dir):
-    scene = load_scene(builtin_scene_dir, downscale=4)
-    scene.views = scene.views[::5]
-    return scene
+    return every_fifth_view(builtin_scene_dir)
 
 
 # --- levels

@@ -9,28 +9,23 @@ import json
 import numpy as np
 import pytest
 import torch
+from tiny_runs import every_fifth_view
+from tiny_runs import tiny_config as shared_tiny_config
 
 from edgedog.edges.correct import shift_edge_map
 from edgedog.errors import ConfigError
-from edgedog.scenes import load_scene
-from edgedog.train.config import preset
 from edgedog.train.targets import LearnedShift, prepare_maps
 from edgedog.train.trainer import Trainer
 
 
 def tiny_config(**changes):
-    base = dataclasses.replace(preset("fast"), downscale=4, epochs=4, init_count=300, init_side=0.8,
-                               init_method="uniform", duplicate_epochs=(), cull_projection_epochs=(),
-                               cull_opacity_epochs=(), fisher_every=100, opacity_from_epoch=0,
-                               checkpoint_every=2, map_shift_from_epoch=1)
-    return dataclasses.replace(base, **changes)
+    """The shared tiny run over four epochs; a learned shift starts at epoch 1."""
+    return shared_tiny_config(**{"epochs": 4, "map_shift_from_epoch": 1, **changes})
 
 
 @pytest.fixture
 def box(builtin_scene_dir):
-    scene = load_scene(builtin_scene_dir, downscale=4)
-    scene.views = scene.views[::5]
-    return scene
+    return every_fifth_view(builtin_scene_dir)
 
 
 def vertical_line(width: int = 40, x: float = 20.0) -> np.ndarray:

@@ -77,8 +77,7 @@ class LowerLayers:
 
     @classmethod
     def from_numpy(cls, arrays: dict[str, np.ndarray]) -> LowerLayers:
-        model = EdgeModel(**{name: torch.from_numpy(np.asarray(arrays[name])) for name in GROUPS})
-        return cls(model, torch.from_numpy(np.asarray(arrays["layers"], np.int64)))
+        return cls(EdgeModel.from_numpy(arrays), torch.from_numpy(np.asarray(arrays["layers"], np.int64)))
 
 
 def lower_layer_config(config: TrainConfig) -> TrainConfig:

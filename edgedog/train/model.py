@@ -44,6 +44,12 @@ class EdgeModel:
             k_raw=torch.tensor(k_init, dtype=torch.float32).repeat(n, 1),
         ).requires_grad_()
 
+    @classmethod
+    def from_numpy(cls, arrays) -> EdgeModel:
+        """Tensors sharing the memory of `arrays` (a mapping with one array per group, as
+        `to_numpy` gives); they do not require gradients."""
+        return cls(**{name: torch.from_numpy(np.asarray(arrays[name])) for name in GROUPS})
+
     def requires_grad_(self) -> EdgeModel:
         for name in GROUPS:
             getattr(self, name).requires_grad_(True)

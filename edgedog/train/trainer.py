@@ -30,7 +30,7 @@ from edgedog.scenes import Scene
 from edgedog.train import losses
 from edgedog.train.config import TrainConfig, from_dict, to_dict
 from edgedog.train.layers import LowerLayers, keep_on_residual, lower_layer_config, residual_maps
-from edgedog.train.model import GROUPS, EdgeModel
+from edgedog.train.model import EdgeModel
 from edgedog.train.optim import Optimizers
 from edgedog.train.strategy import DensityStrategy, EdgeViews, StrategyState
 from edgedog.train.targets import LearnedShift, fixed_shift, prepare_maps
@@ -111,8 +111,7 @@ def read_stack(run_dir: Path) -> LowerLayers:
         raise InputError(path, "no checkpoint (is this a run folder written by `edgedog train`?)")
     saved = torch.load(path, weights_only=False)
     lower = LowerLayers.from_numpy(saved["lower"]) if "lower" in saved else LowerLayers.empty()
-    model = EdgeModel(**{name: torch.from_numpy(saved["model"][name]) for name in GROUPS})
-    return lower.plus(model, from_dict(saved["config"]).layer)
+    return lower.plus(EdgeModel.from_numpy(saved["model"]), from_dict(saved["config"]).layer)
 
 
 class Trainer:
@@ -158,11 +157,11 @@ class Trainer:
         """The name of the maps to fit (computed now when needed); sets `own_maps`: whether they
         are the scene's own maps rather than computed by edgedog."""
         wanted = self.config.detector
-        self.own_maps = wanted in self.scene.detectors or (wanted == "auto" and bool(self.scene.detectors))
-        if wanted in self.scene.detectors:
-            return wanted
         if wanted == "auto" and self.scene.detectors:
-            return self.scene.detectors[0]
+            wanted = self.scene.detectors[0]
+        self.own_maps = wanted in self.scene.detectors
+        if self.own_maps:
+            return wanted
         return ensure_edge_maps(self.scene, make_detector(wanted), progress=self.progress).detector
 
     def _initialise(self) -> None:
@@ -321,8 +320,7 @@ class Trainer:
         saved = torch.load(path, weights_only=False)
         if from_dict(saved["config"]) != self.config:
             raise InputError(path, "the checkpoint was made with another configuration")
-        self.model = EdgeModel(**{name: torch.from_numpy(saved["model"][name]) for name in GROUPS})
-        self.model.requires_grad_()
+        self.model = EdgeModel.from_numpy(saved["model"]).requires_grad_()
         self.optimizers = Optimizers(self.model, self.config)
         self.optimizers.load_state_dict(saved["optimizers"])
         self.state = StrategyState(saved["absgrad"], saved["pruned_positions"], saved["fisher"])
