@@ -35,7 +35,8 @@ def test_rows_that_train_identically_share_a_run():
     one = effective_config(dataclasses.replace(base, weighting="one"))
     off = effective_config(dataclasses.replace(base, pixel_uncertainty=False, weighting="up"))
     assert one == off != full
-    assert run_name(one) == "dog_nopix_fisher" and run_name(full) == "dog_pix-exp_fisher"
+    assert run_name(one) == "dog_nopix_fisher_outline-auto"
+    assert run_name(full) == "dog_pix-exp_fisher_outline-auto"
     baseline = effective_config(dataclasses.replace(base, kernel="gaussian", k_init=(1.0, 0.0)))
     assert baseline.k_init == base.k_init  # k is unused by the Gaussian kernel
 
@@ -48,8 +49,8 @@ def test_weighting_table_trains_scores_and_reuses_its_runs(builtin_scene_dir, tm
     results = run_ablation(builtin_scene_dir, tmp_path, "fast", base, (WEIGHTING,), progress=False)
     assert [r["table"] for r in results] == [WEIGHTING] * 5
     runs = sorted(p.name for p in tmp_path.iterdir() if p.is_dir())
-    assert len(runs) == 5 and "dog_nopix_fisher" in runs  # w = 1 is the run without the term
-    assert results[0]["run"] == "dog_nopix_fisher"
+    assert len(runs) == 5 and "dog_nopix_fisher_outline-auto" in runs  # w = 1 is the run without the term
+    assert results[0]["run"] == "dog_nopix_fisher_outline-auto"
     for r in results:
         assert r["primitives"] > 0 and r["train_seconds"] > 0
         assert r["points_fscore_10mm"] is not None and 0 <= r["points_fscore_10mm"] <= 100
@@ -70,7 +71,9 @@ def test_correction_rows_get_their_own_runs_and_a_skipped_row_says_why():
     base = preset("fast")
     names = [run_name(effective_config(dataclasses.replace(base, **row.changes)))
              for row in correction_rows()]
-    assert len(set(names)) == 5 and names[0] == "dog_pix-exp_fisher" and "dog_pix-exp_fisher_learned" in names
+    assert len(set(names)) == len(names) == 7 and names[0] == "dog_pix-exp_fisher"  # no correction at all
+    assert {"dog_pix-exp_fisher_learned", "dog_pix-exp_fisher_outline",
+            "dog_pix-exp_fisher_profile_outline"} <= set(names)
     table = markdown([{"table": CORRECTIONS, "label": "shift by the detector's calibration", "run": names[1],
                        "skipped": "no calibration of detector 'x'"}])
     assert "| shift by the detector's calibration | skipped: no calibration of detector 'x' |" in table

@@ -23,7 +23,8 @@ WEIGHTING = "weighting"
 CORRECTIONS = "corrections"
 TABLES = (COMPONENTS, WEIGHTING, CORRECTIONS)
 TITLES = {COMPONENTS: "Components (Table 3)", WEIGHTING: "Weighting of the pixel uncertainty (Table 4)",
-          CORRECTIONS: "Corrections of the maps' bias (map shift: px at the training resolution)"}
+          CORRECTIONS: "Corrections of the maps' bias (map shift: px at the training resolution; "
+                       "outline offset: where the maps drew the masks' outline, px outside)"}
 
 
 @dataclass(frozen=True)
@@ -60,10 +61,15 @@ def weighting_rows() -> list[AblationRow]:
 
 def correction_rows() -> list[AblationRow]:
     """The full model on the raw maps and with each correction of the maps' bias."""
-    rows = {"raw maps": {}, "shift by the detector's calibration": {"map_correction": "calibrated"},
-            "shift learned with the primitives": {"map_correction": "learned"},
-            "thinned (NMS + narrow profile)": {"edge_profile": "thin"},
-            "profile loss (render blurred to the band)": {"edge_profile": "profile"}}
+    plain = {"silhouette_correction": "none"}  # one correction at a time
+    rows = {"raw maps": plain,
+            "shift by the detector's calibration": {**plain, "map_correction": "calibrated"},
+            "shift learned with the primitives": {**plain, "map_correction": "learned"},
+            "thinned (NMS + narrow profile)": {**plain, "edge_profile": "thin"},
+            "profile loss (render blurred to the band)": {**plain, "edge_profile": "profile"},
+            "outline pulled onto the masks": {"silhouette_correction": "measured"},
+            "outline pulled onto the masks + profile loss": {"silhouette_correction": "measured",
+                                                             "edge_profile": "profile"}}
     return [AblationRow(CORRECTIONS, label, {"kernel": "dog", "pixel_uncertainty": True,
                                              "primitive_uncertainty": True, **changes})
             for label, changes in rows.items()]
@@ -88,6 +94,7 @@ def run_name(config: TrainConfig) -> str:
              "fisher" if config.primitive_uncertainty else "nofisher"]
     parts += [config.map_correction] if config.map_correction != "none" else []
     parts += [config.edge_profile] if config.edge_profile != "raw" else []
+    parts += {"none": [], "measured": ["outline"], "auto": ["outline-auto"]}[config.silhouette_correction]
     return "_".join(parts)
 
 
@@ -136,7 +143,8 @@ def run_ablation(scene_path: Path, out: Path, preset_name: str, base: TrainConfi
                         "points_fscore_10mm": report["metrics"].get("points", {}).get("fscore_10mm"),
                         "curves": report["counts"]["lines"] + report["counts"]["beziers"],
                         "train_seconds": log["train_seconds"], "primitives": log["final_primitives"],
-                        "map_shift_px": log.get("map_shift_px")})
+                        "map_shift_px": log.get("map_shift_px"),
+                        "outline_offset_px": (log.get("silhouette_correction") or {}).get("offset_px")})
         write_report(out, results)
     return results
 
@@ -151,8 +159,8 @@ def markdown(results: list[dict]) -> str:
         shifts = table == CORRECTIONS
         lines += [f"**{TITLES[table]}**", "",
                   "| row | R5 | P5 | F5 | F10 | F20 | Acc (mm) | Comp (mm) | points F10 | curves | train (s) "
-                  "| primitives |" + (" map shift (px) |" if shifts else ""),
-                  "|---|---|---|---|---|---|---|---|---|---|---|---|" + ("---|" if shifts else "")]
+                  "| primitives |" + (" map shift (px) | outline offset (px) |" if shifts else ""),
+                  "|---|---|---|---|---|---|---|---|---|---|---|---|" + ("---|---|" if shifts else "")]
         for r in rows:
             if "skipped" in r:
                 lines.append(f"| {r['label']} | skipped: {r['skipped']} |")
@@ -165,7 +173,8 @@ def markdown(results: list[dict]) -> str:
             shift = r.get("map_shift_px") or [0.0, 0.0]
             lines.append(f"| {r['label']} | {' | '.join(scores)} | {r['curves']} | "
                          f"{r['train_seconds']:.0f} | {r['primitives']} |"
-                         + (f" {shift[0]:+.2f}, {shift[1]:+.2f} |" if shifts else ""))
+                         + (f" {shift[0]:+.2f}, {shift[1]:+.2f} | {cell(r.get('outline_offset_px'), 2)} |"
+                            if shifts else ""))
         lines.append("")
     return "\n".join(lines)
 

@@ -45,7 +45,8 @@ def add_parser(subparsers) -> None:
                           help="override a training setting for every row (repeatable)")
     ablation.add_argument("--tables", default="components,weighting",
                           help="comma-separated: components (Table 3), weighting (Table 4), corrections "
-                               "(the maps' bias: calibrated shift, learned shift, thin maps, profile loss)")
+                               "(the maps' bias: calibrated shift, learned shift, thin maps, profile loss, "
+                               "outline pulled onto the masks)")
     ablation.add_argument("--quiet", action="store_true", help="no progress bars")
     ablation.set_defaults(run=run_ablation)
     layers = kinds.add_parser(

@@ -116,12 +116,18 @@ class Scene:
             )
         return as_gray(self._read(view.edge_paths[detector], index))
 
-    def load_mask(self, index: int) -> np.ndarray | None:
-        """(H, W) bool object mask, from the mask file or the image's alpha; None if neither."""
+    def load_coverage(self, index: int) -> np.ndarray | None:
+        """(H, W) float32 share of each pixel covered by the object, in [0, 1], from the mask
+        file or the image's alpha; None if neither. Anti-aliased borders keep fractional values."""
         view = self.views[index]
         if view.mask_path is not None:
-            return as_gray(self._read(view.mask_path, index)) > 0.5
+            return as_gray(self._read(view.mask_path, index))
         image = self._read(view.image_path, index)
         if image.ndim == 3 and image.shape[2] == 4:
-            return image[..., 3] > 0.5
+            return np.ascontiguousarray(image[..., 3])
         return None
+
+    def load_mask(self, index: int) -> np.ndarray | None:
+        """(H, W) bool object mask (coverage > 0.5); None if the scene has no masks."""
+        coverage = self.load_coverage(index)
+        return None if coverage is None else coverage > 0.5

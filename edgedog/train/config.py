@@ -65,6 +65,15 @@ class TrainConfig:
     """'learned': the shift is fitted once the primitives have settled (from this epoch)."""
     lr_map_shift: float = 0.002
     """'learned': Adam's learning rate of the shift, px per step."""
+    silhouette_correction: Literal["auto", "measured", "none"] = "auto"
+    """'measured': measure where the maps draw the object's outline against the scene's masks
+    (alpha or mask files) and pull them onto it (edgedog.edges.silhouette). Maps made from
+    RGBA images with the alpha dropped draw it 1-1.5 px outside, and the model grows outwards.
+    'auto': 'measured' when the images carry an alpha channel (a render's exact outline), else
+    'none' (hand-drawn mask files of photos are not exact enough to correct maps with)."""
+    silhouette_reach: float = 3.0
+    """'measured': px from the outline within which the full correction applies (fading to 0 at
+    twice this)."""
     edge_profile: Literal["raw", "thin", "profile"] = "raw"
     """'raw': fit the maps as they are; 'thin': fit their ridge drawn with a narrow Gaussian
     profile (edgedog.edges.thin), which removes the bias of thick, asymmetric detector bands;
@@ -153,6 +162,11 @@ class TrainConfig:
         if self.map_correction not in ("none", "calibrated", "shift", "learned"):
             raise ConfigError(f"map_correction must be none, calibrated, shift or learned, "
                               f"got {self.map_correction!r}")
+        if self.silhouette_correction not in ("auto", "measured", "none"):
+            raise ConfigError(f"silhouette_correction must be auto, measured or none, "
+                              f"got {self.silhouette_correction!r}")
+        if self.silhouette_reach <= 0:
+            raise ConfigError("silhouette_reach must be positive")
         if self.profile_sigma <= 0 or len(self.map_shift) != 2:
             raise ConfigError("profile_sigma must be positive and map_shift two numbers (dx, dy)")
         if self.layer < 0 or self.lower_lr_scale < 0:

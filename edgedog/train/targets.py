@@ -1,5 +1,5 @@
 """The maps a run fits, as the config asks: floored, shifted by the detector's correction,
-thinned; and the shift fitted with the primitives ('learned')."""
+pulled onto the object's outline, thinned; and the shift fitted with the primitives ('learned')."""
 
 from __future__ import annotations
 
@@ -9,8 +9,9 @@ import torch
 from edgedog.edges.calibrate import load_calibration
 from edgedog.edges.correct import shift_edge_map, warp_target
 from edgedog.edges.registry import make_detector
+from edgedog.edges.silhouette import Outline, measure_silhouette_profile, pull_to_outline
 from edgedog.edges.thin import thin_edge_map
-from edgedog.errors import ConfigError
+from edgedog.errors import ConfigError, InputError
 from edgedog.scenes import Scene
 from edgedog.train.config import TrainConfig
 
@@ -36,19 +37,83 @@ def fixed_shift(config: TrainConfig, scene: Scene, maps_name: str, own_maps: boo
     return dx / scale, dy / scale
 
 
-def prepare_maps(maps: list[np.ndarray], config: TrainConfig, shift: tuple[float, float]
-                 ) -> tuple[list[np.ndarray], list[np.ndarray]]:
-    """Targets and edge masks from (H, W) maps: values under `map_floor` zeroed, then the
-    shift applied; the masks (map >= edge_threshold, for the sampled loss and the projection
-    cull) come from those maps, and the 'thin' profile is drawn last, for the targets only."""
+def images_carry_alpha(scene: Scene) -> bool:
+    """Whether the scene's masks come from its images' alpha (the first readable view decides)."""
+    for index, view in enumerate(scene.views):
+        if view.mask_path is not None:
+            return False
+        try:
+            return scene.load_coverage(index) is not None
+        except InputError:  # an unreadable image: ask the next view
+            continue
+    return False
+
+
+def corrects_silhouettes(config: TrainConfig, scene: Scene) -> bool:
+    """Whether the run pulls its maps onto the masks' outline (`silhouette_correction`)."""
+    if config.silhouette_correction == "auto":
+        return images_carry_alpha(scene)
+    return config.silhouette_correction == "measured"
+
+
+def scene_outlines(scene: Scene) -> tuple[list[Outline | None], list[str]]:
+    """The object's outline in every view, from the scene's masks; None for a view whose mask or
+    image cannot be read, named in the second list (its map then stays as it is).
+
+    Raises:
+        InputError when the scene has no masks (no mask files and no alpha).
+    """
+    outlines: list[Outline | None] = []
+    unreadable: list[str] = []
+    for index in range(len(scene)):
+        try:
+            coverage = scene.load_coverage(index)
+        except InputError as error:
+            outlines.append(None)
+            unreadable.append(str(error))
+            continue
+        if coverage is None:
+            raise InputError(scene.root, "silhouette_correction=measured needs object masks "
+                                         "(mask files or RGBA images), and this scene has none")
+        outlines.append(Outline.from_coverage(coverage))
+    return outlines, unreadable
+
+
+def correct_silhouettes(maps: list[np.ndarray], outlines: list[Outline | None], reach_px: float
+                        ) -> tuple[list[np.ndarray], dict]:
+    """Measure where the (H, W) maps draw the outlines and pull them onto them; returns the
+    maps and a report (measured offset in px, pixels averaged, residual offset after)."""
+    pairs = [(m, o) for m, o in zip(maps, outlines, strict=True) if o is not None]
+    if not pairs:
+        raise ConfigError("silhouette_correction=measured: no view has a readable mask")
+    measured = measure_silhouette_profile(*zip(*pairs))
+    corrected = [m if o is None else pull_to_outline(m, o, measured.offset_px, reach_px)
+                 for m, o in zip(maps, outlines, strict=True)]
+    residual = measure_silhouette_profile([m for m, o in zip(corrected, outlines) if o is not None],
+                                          [o for o in outlines if o is not None])
+    return corrected, {"offset_px": round(measured.offset_px, 3), "pixels": measured.pixels,
+                       "residual_px": round(residual.offset_px, 3)}
+
+
+def prepare_maps(maps: list[np.ndarray], config: TrainConfig, shift: tuple[float, float],
+                 outlines: list[Outline | None] | None = None
+                 ) -> tuple[list[np.ndarray], list[np.ndarray], dict | None]:
+    """Targets and edge masks from (H, W) maps: values under `map_floor` zeroed, the shift
+    applied, then the silhouettes pulled onto the views' `outlines` when given (see
+    `corrects_silhouettes`); the masks (map >= edge_threshold, for the sampled
+    loss and the projection cull) come from those maps, and the 'thin' profile is drawn last,
+    for the targets only. The third value is the silhouette report (None when not corrected)."""
     if config.map_floor > 0:
         maps = [np.where(m >= config.map_floor, m, 0).astype(np.float32) for m in maps]
     if shift != (0.0, 0.0):
         maps = [shift_edge_map(m, *shift) for m in maps]
+    silhouette = None
+    if outlines is not None:
+        maps, silhouette = correct_silhouettes(maps, outlines, config.silhouette_reach)
     masks = [m >= config.edge_threshold for m in maps]
     if config.edge_profile == "thin":
         maps = [thin_edge_map(m, config.thin_sigma) for m in maps]
-    return maps, masks
+    return maps, masks, silhouette
 
 
 class LearnedShift:

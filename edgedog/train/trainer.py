@@ -33,7 +33,13 @@ from edgedog.train.layers import LowerLayers, keep_on_residual, lower_layer_conf
 from edgedog.train.model import EdgeModel
 from edgedog.train.optim import Optimizers
 from edgedog.train.strategy import DensityStrategy, EdgeViews, StrategyState
-from edgedog.train.targets import LearnedShift, fixed_shift, prepare_maps
+from edgedog.train.targets import (
+    LearnedShift,
+    corrects_silhouettes,
+    fixed_shift,
+    prepare_maps,
+    scene_outlines,
+)
 
 CHECKPOINT = "checkpoint.pt"
 GEOMETRY_GROUPS = ("means", "log_scales", "quats")  # what the orientation losses move
@@ -129,8 +135,10 @@ class Trainer:
         self.detector = self._edge_maps()
         self.cameras = [RasterCamera.from_camera(scene.camera(i)) for i in range(len(scene))]
         self.map_shift = fixed_shift(config, scene, self.detector, self.own_maps)
-        maps, masks = prepare_maps([scene.load_edge_map(i, self.detector) for i in range(len(scene))], config,
-                                   self.map_shift)
+        outlines, self.unreadable_masks = (scene_outlines(scene) if corrects_silhouettes(config, scene)
+                                           else (None, []))
+        raw_maps = [scene.load_edge_map(i, self.detector) for i in range(len(scene))]
+        maps, masks, self.silhouette = prepare_maps(raw_maps, config, self.map_shift, outlines)
         self.targets = [torch.from_numpy(m) for m in maps]
         self.views = EdgeViews(self.cameras, scene.cameras, [torch.from_numpy(m) for m in masks])
         self.learned_shift = LearnedShift(config) if config.map_correction == "learned" else None
@@ -358,6 +366,8 @@ class Trainer:
             "init": self.init_report, "initial_primitives": self.initial_count,
             "final_primitives": len(self.model), "lower_primitives": len(self.lower),
             "map_shift_px": self.shift_px(),
+            "silhouette_correction": None if self.silhouette is None else {
+                **self.silhouette, "views_without_mask": self.unreadable_masks},
             "train_seconds": round(self.seconds, 2),
             "peak_rss_mib": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1),
             "non_finite_gradients_zeroed": self.bad_gradients, "events": self.events,
