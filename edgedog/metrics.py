@@ -2,8 +2,8 @@
 
 Predicted edges (lines, cubic Béziers, polylines) are sampled every ``SAMPLE_SPACING``
 (n = floor(length / spacing) points, endpoints included), the predicted samples are averaged
-per cell of a 256^3 voxel grid over [-1, 1]^3, and the result is compared with ground-truth
-edge samples by nearest-neighbour distances:
+per cell of a 256^3 voxel grid over [-1, 1]^3 (continued beyond it), and the result is
+compared with ground-truth edge samples by nearest-neighbour distances:
 
 * Accuracy: mean distance from each prediction point to the nearest GT point (mm).
 * Completeness: mean distance from each GT point to the nearest prediction point (mm).
@@ -95,17 +95,18 @@ def voxel_mean(
 ) -> np.ndarray:
     """Replace the points (N, 3) of each occupied voxel by their mean; returns (M, 3) float64.
 
-    The grid has ``voxels_per_axis`` cells per axis over [lo, hi]^3; a point's cell is
-    floor((p - lo) / size). Points outside the bounds are dropped (a point exactly on the upper
-    bound goes to the last cell). Output rows are ordered by linear cell index.
+    The grid has ``voxels_per_axis`` cells per axis over [lo, hi]^3 and continues beyond it: a
+    point's cell is floor((p - lo) / size), and points outside the bounds are kept in cells of
+    the extended grid, as point_cloud_utils' `downsample_point_cloud_on_voxel_grid` (which
+    EMAP's evaluation calls) does. Non-finite points are dropped. Rows are ordered by cell.
     """
     points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    points = points[np.isfinite(points).all(axis=1)]  # a NaN or Inf point has no cell
     lo, hi = bounds
     size = (hi - lo) / voxels_per_axis
-    points = points[np.all((points >= lo) & (points <= hi), axis=1)]
-    cell = np.minimum(np.floor((points - lo) / size).astype(np.int64), voxels_per_axis - 1)
-    linear = (cell[:, 0] * voxels_per_axis + cell[:, 1]) * voxels_per_axis + cell[:, 2]
-    _, inverse, counts = np.unique(linear, return_inverse=True, return_counts=True)
+    cell = np.floor((points - lo) / size).astype(np.int64)
+    _, inverse, counts = np.unique(cell, axis=0, return_inverse=True, return_counts=True)
+    inverse = inverse.reshape(-1)
     sums = np.stack(
         [np.bincount(inverse, weights=points[:, k], minlength=len(counts)) for k in range(3)],
         axis=1,

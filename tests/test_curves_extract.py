@@ -144,6 +144,25 @@ def test_square_is_four_lines_with_shared_corners():
     assert cKDTree(corners).query(shared)[0].max() < 0.003
 
 
+@pytest.mark.parametrize("seed", range(4))
+def test_short_step_between_two_corners_is_kept(seed):
+    # A 35 mm step often thins to fewer than min_chain_vertices vertices (seeds 0 and 2): it is
+    # not noise, since both its ends meet the long lines at corners.
+    truth = [segment([0, 0, 0], [0.5, 0, 0]), segment([0.5, 0, 0], [0.5, 0.035, 0]),
+             segment([0.5, 0.035, 0], [1, 0.035, 0])]
+    curves, _ = extract(*truth, seed=seed)
+    assert curves.lines.shape == (3, 2, 3) and len(curves.beziers) == 0
+    assert coverage(curves, segment([0.5, 0, 0], [0.5, 0.035, 0], 0.0005)[0], 0.005) == 1.0
+    _, counts = np.unique(np.round(end_points(curves), 12), axis=0, return_counts=True)
+    assert sorted(counts) == [1, 1, 2, 2]  # the step shares both its ends: one connected path
+
+
+def test_isolated_short_chain_is_dropped_as_noise():
+    stray = segment([0.3, 0.5, 0.2], [0.3, 0.52, 0.2])  # 20 mm, far from the line
+    curves, chains = extract(segment([0, 0, 0], [1, 0, 0]), stray)
+    assert len(chains) == 1 and curves.lines.shape == (1, 2, 3)
+
+
 def test_extraction_is_deterministic_and_handles_too_few_points():
     a = extract(helix(), seed=3)[0]
     b = extract(helix(), seed=3)[0]

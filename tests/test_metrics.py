@@ -158,20 +158,27 @@ def test_voxel_mean_cell_size_is_2_over_256():
     np.testing.assert_allclose(np.sort(out[:, 0]), [-1.0 + 0.5 * cell, -1.0 + 1.5 * cell])
 
 
-def test_voxel_mean_upper_bound_is_in_last_cell():
+def test_voxel_mean_grid_continues_beyond_the_bounds():
+    # As point_cloud_utils' voxel grid: floor((p - lo) / size) with no clamp, so the upper bound
+    # starts a new cell and points outside [-1, 1]^3 are kept in cells of the extended grid
+    # (an edge on a face at 1 predicted 3 mm outside is not lost).
     cell = 2.0 / 256
     p = np.array([[1.0, 0.0, 0.0], [1.0 - 0.5 * cell, 0.0, 0.0]])
-    np.testing.assert_allclose(voxel_mean(p), [[1.0 - 0.25 * cell, 0.0, 0.0]])
+    assert len(voxel_mean(p)) == 2
+    outside = np.array([[-1.0 - 0.5 * cell, 0, 0], [-1.0 - 0.6 * cell, 0, 0], [1.003, 0.5, 0.5], [1.5, 0, 0]])
+    out = voxel_mean(outside)
+    assert len(out) == 3
+    np.testing.assert_allclose(out[0], [-1.0 - 0.55 * cell, 0, 0])
+    assert {tuple(np.round(r, 6)) for r in out[1:]} == {(1.003, 0.5, 0.5), (1.5, 0.0, 0.0)}
 
 
-def test_voxel_mean_keeps_distinct_cells_and_drops_outside():
+def test_voxel_mean_keeps_distinct_cells_and_drops_non_finite_points():
     p = np.array(
         [
             [0.5, 0.5, 0.5],
             [-0.5, 0.25, 0.0],
-            [1.5, 0.0, 0.0],  # outside
-            [0.0, -1.01, 0.0],  # outside
-            [0.0, 0.0, 2.0],  # outside
+            [np.nan, 0.0, 0.0],
+            [0.0, np.inf, 0.0],
         ]
     )
     out = voxel_mean(p)
@@ -260,7 +267,7 @@ def test_empty_prediction_raises():
     with pytest.raises(ValueError, match="prediction"):
         score_points(np.empty((0, 3)), np.zeros((3, 3)))
     with pytest.raises(ValueError, match="prediction"):
-        evaluate(np.array([[5.0, 5.0, 5.0]]), np.zeros((3, 3)))  # all outside the voxel grid
+        evaluate(np.array([[np.nan, 5.0, 5.0]]), np.zeros((3, 3)))  # no finite point
 
 
 def test_evaluate_voxelizes_prediction_only():

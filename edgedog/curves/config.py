@@ -59,7 +59,8 @@ class ExtractConfig:
     corner_angle: float = 60.0
     """Degrees: a chain is split where it turns more than this over a few vertices."""
     min_chain_vertices: int = 4
-    """Shorter chains are dropped as noise, and shorter side branches are pruned."""
+    """Shorter chains are dropped as noise unless an end meets a longer chain's end (within
+    `snap_radius`: a short edge between corners), and shorter side branches are pruned."""
 
     # --- fitting (fractions of the scene size)
     line_tolerance: float = 0.004

@@ -52,8 +52,9 @@ def extract_curves(points: np.ndarray, directions: np.ndarray, config: ExtractCo
     pairs, lengths = grouping.candidate_links(vertices, axes, c.link_distance * size, min_cos)
     links = grouping.prune_spurs(grouping.spanning_links(pairs, lengths, len(vertices)), len(vertices),
                                  c.min_chain_vertices)
-    chains = grouping.chains_from_links(vertices, links, pairs, c.min_chain_vertices)
+    chains = grouping.chains_from_links(vertices, links, pairs)
     chains = topology.join_chains(chains, c.join_distance * size, min_cos)
+    chains = topology.drop_isolated(chains, c.min_chain_vertices, c.snap_radius * size)
     chains = [piece for chain in chains for piece in topology.split_at_corners(chain, c.corner_angle)]
     chains = topology.split_at_junctions(chains, c.snap_radius * size)
     rng = np.random.default_rng(c.seed)

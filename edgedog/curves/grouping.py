@@ -12,7 +12,8 @@ of the raw points is a thick web, not a chain. Four steps turn it into chains:
 4. chaining: the forest is cut at its junctions into chains, and a chain whose two ends are
    candidate neighbours is a closed loop (a circle), not an open curve with a gap.
 
-Corners and junctions that the direction test leaves connected are split in `topology`.
+Corners and junctions that the direction test leaves connected are split in `topology`, which
+also joins broken curves and drops the short chains that are noise.
 """
 
 from __future__ import annotations
@@ -170,14 +171,13 @@ def prune_spurs(edges: np.ndarray, n: int, min_vertices: int) -> np.ndarray:
                            dtype=np.int64).reshape(-1, 2)
 
 
-def chains_from_links(vertices: np.ndarray, edges: np.ndarray, candidates: np.ndarray,
-                      min_vertices: int) -> list[Chain]:
-    """Chains of vertices (K, 3) between ends and junctions of the forest links (E, 2); shorter
-    ones are dropped, and a chain whose two ends are a candidate pair (C, 2) is a closed loop."""
+def chains_from_links(vertices: np.ndarray, edges: np.ndarray, candidates: np.ndarray) -> list[Chain]:
+    """Chains of vertices (K, 3) between ends and junctions of the forest links (E, 2), however
+    short (`topology.drop_isolated` judges them once broken curves are joined); a chain whose
+    two ends are a candidate pair (C, 2) is a closed loop."""
     closing = {tuple(pair) for pair in np.sort(candidates, axis=1).tolist()}
     chains = []
     for index in chain_edges(edges, len(vertices)):
-        if len(index) >= min_vertices:
-            closed = len(index) > 2 and tuple(sorted((int(index[0]), int(index[-1])))) in closing
-            chains.append(Chain(vertices[index], closed))
+        closed = len(index) > 2 and tuple(sorted((int(index[0]), int(index[-1])))) in closing
+        chains.append(Chain(vertices[index], closed))
     return chains

@@ -1,4 +1,5 @@
-"""Splitting chains where the curve they follow ends: at corners and at junctions."""
+"""Chains -> the curves they follow: broken curves joined, short isolated chains dropped as
+noise, and chains split where their curve ends (at corners and junctions)."""
 
 from __future__ import annotations
 
@@ -6,6 +7,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from edgedog.curves.grouping import Chain
+from edgedog.curves.junctions import end_clusters
 
 
 def turning_angles(points: np.ndarray, closed: bool, window: int) -> np.ndarray:
@@ -130,3 +132,19 @@ def join_chains(chains: list[Chain], max_gap: float, min_cos: float, window: int
         pb = chains[kb].points if sb == 0 else chains[kb].points[::-1]  # starts at the joined tip
         chains[ka] = Chain(np.vstack([pa, pb]))
         del chains[kb]
+
+
+def drop_isolated(chains: list[Chain], min_vertices: int, radius: float) -> list[Chain]:
+    """Drop chains of fewer than `min_vertices` vertices, unless one of their ends meets an end of
+    a longer chain within `radius` (as `junctions.end_clusters` decides for curve ends).
+
+    Alone, a short chain is noise; between two junctions of the forest, or as a short edge between
+    two corners of the object (sparse points give it few vertices), it is part of the network,
+    and dropping it would leave a gap.
+    """
+    if not chains:
+        return chains
+    labels = end_clusters([chain.points for chain in chains], radius).reshape(-1, 2)
+    long_ = np.array([len(chain.points) >= min_vertices for chain in chains])
+    anchored = np.isin(labels, labels[long_]).any(axis=1)
+    return [chain for chain, keep in zip(chains, long_ | anchored) if keep]
