@@ -106,7 +106,7 @@ def voxel_mean(
     size = (hi - lo) / voxels_per_axis
     cell = np.floor((points - lo) / size).astype(np.int64)
     _, inverse, counts = np.unique(cell, axis=0, return_inverse=True, return_counts=True)
-    inverse = inverse.reshape(-1)
+    inverse = inverse.reshape(-1)  # NumPy 2.0.0 (allowed by pyproject) returns it 2-D along an axis
     sums = np.stack(
         [np.bincount(inverse, weights=points[:, k], minlength=len(counts)) for k in range(3)],
         axis=1,

@@ -109,7 +109,7 @@ class _Sampler:
         return top + fy * (bottom - top)
 
 
-def _parabola_vertex(left: float, centre: float, right: float) -> float:
+def parabola_vertex(left: float, centre: float, right: float) -> float:
     """Where the parabola through (-1, left), (0, centre), (1, right) peaks, in [-0.5, 0.5]."""
     curvature = left - 2 * centre + right
     return float(np.clip(0.5 * (left - right) / curvature, -0.5, 0.5)) if curvature < 0 else 0.0
@@ -119,8 +119,8 @@ def _grid_peak(scores: np.ndarray) -> tuple[int, int, float, float]:
     """(rows, cols) scores -> argmax (row, col) and its parabolic refinement along each axis
     (fractions of a step; 0 on the grid's border)."""
     row, col = np.unravel_index(np.argmax(scores), scores.shape)
-    frac_row = _parabola_vertex(*scores[row - 1:row + 2, col]) if 0 < row < scores.shape[0] - 1 else 0.0
-    frac_col = _parabola_vertex(*scores[row, col - 1:col + 2]) if 0 < col < scores.shape[1] - 1 else 0.0
+    frac_row = parabola_vertex(*scores[row - 1:row + 2, col]) if 0 < row < scores.shape[0] - 1 else 0.0
+    frac_col = parabola_vertex(*scores[row, col - 1:col + 2]) if 0 < col < scores.shape[1] - 1 else 0.0
     return int(row), int(col), frac_row, frac_col
 
 
@@ -169,7 +169,7 @@ class EdgeProfile:
             return cls(stored, float(PROFILE_OFFSETS[top]), 0.0, 0.0)
         peak = PROFILE_OFFSETS[top]
         if 0 < top < len(values) - 1:
-            peak += PROFILE_STEP * _parabola_vertex(*values[top - 1:top + 2])
+            peak += PROFILE_STEP * parabola_vertex(*values[top - 1:top + 2])
         left, right = (_half_crossing(values, top, direction) for direction in (-1, 1))
         asymmetry = ((right - peak) - (peak - left)) / (right - left)
         return cls(stored, float(peak), float((right - left) / FWHM_PER_SIGMA), float(asymmetry))

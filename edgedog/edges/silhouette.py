@@ -18,6 +18,8 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from edgedog.edges.calibrate import parabola_vertex
+
 SUBPIXEL = 4
 """Upsampling of the coverage before its distance transform: the contour to a quarter pixel."""
 
@@ -102,10 +104,7 @@ def measure_silhouette_profile(edge_maps: Sequence[np.ndarray], outlines: Sequen
     values = np.where(counts > 0, sums / np.maximum(counts, 1), 0.0)
     centres = (edges[:-1] + edges[1:]) / 2
     top = int(np.clip(np.argmax(values), 1, len(values) - 2))
-    left, centre, right = values[top - 1:top + 2]
-    curvature = left - 2 * centre + right
-    vertex = 0.5 * (left - right) / curvature if curvature < 0 else 0.0
-    peak = float(centres[top] + vertex * PROFILE_BIN_PX)
+    peak = float(centres[top] + parabola_vertex(*values[top - 1:top + 2]) * PROFILE_BIN_PX)
     return SilhouetteProfile(centres, values, peak, int(counts.sum()))
 
 

@@ -81,16 +81,18 @@ def scene_outlines(scene: Scene) -> tuple[list[Outline | None], list[str]]:
 
 def correct_silhouettes(maps: list[np.ndarray], outlines: list[Outline | None], reach_px: float
                         ) -> tuple[list[np.ndarray], dict]:
-    """Measure where the (H, W) maps draw the outlines and pull them onto them; returns the
-    maps and a report (measured offset in px, pixels averaged, residual offset after)."""
-    pairs = [(m, o) for m, o in zip(maps, outlines, strict=True) if o is not None]
-    if not pairs:
+    """Measure where the (H, W) maps draw the outlines and pull them onto them (views without an
+    outline stay as they are); returns the maps and a report (measured offset in px, pixels
+    averaged, residual offset after)."""
+    present = [i for i, outline in enumerate(outlines) if outline is not None]
+    if not present:
         raise ConfigError("silhouette_correction=measured: no view has a readable mask")
-    measured = measure_silhouette_profile(*zip(*pairs))
-    corrected = [m if o is None else pull_to_outline(m, o, measured.offset_px, reach_px)
-                 for m, o in zip(maps, outlines, strict=True)]
-    residual = measure_silhouette_profile([m for m, o in zip(corrected, outlines) if o is not None],
-                                          [o for o in outlines if o is not None])
+    known = [outlines[i] for i in present]
+    measured = measure_silhouette_profile([maps[i] for i in present], known)
+    corrected = list(maps)
+    for i in present:
+        corrected[i] = pull_to_outline(maps[i], outlines[i], measured.offset_px, reach_px)
+    residual = measure_silhouette_profile([corrected[i] for i in present], known)
     return corrected, {"offset_px": round(measured.offset_px, 3), "pixels": measured.pixels,
                        "residual_px": round(residual.offset_px, 3)}
 

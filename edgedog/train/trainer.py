@@ -135,10 +135,11 @@ class Trainer:
         self.detector = self._edge_maps()
         self.cameras = [RasterCamera.from_camera(scene.camera(i)) for i in range(len(scene))]
         self.map_shift = fixed_shift(config, scene, self.detector, self.own_maps)
-        outlines, self.unreadable_masks = (scene_outlines(scene) if corrects_silhouettes(config, scene)
-                                           else (None, []))
+        outlines, unreadable = scene_outlines(scene) if corrects_silhouettes(config, scene) else (None, [])
         raw_maps = [scene.load_edge_map(i, self.detector) for i in range(len(scene))]
         maps, masks, self.silhouette = prepare_maps(raw_maps, config, self.map_shift, outlines)
+        if self.silhouette is not None:
+            self.silhouette["views_without_mask"] = unreadable
         self.targets = [torch.from_numpy(m) for m in maps]
         self.views = EdgeViews(self.cameras, scene.cameras, [torch.from_numpy(m) for m in masks])
         self.learned_shift = LearnedShift(config) if config.map_correction == "learned" else None
@@ -366,8 +367,7 @@ class Trainer:
             "init": self.init_report, "initial_primitives": self.initial_count,
             "final_primitives": len(self.model), "lower_primitives": len(self.lower),
             "map_shift_px": self.shift_px(),
-            "silhouette_correction": None if self.silhouette is None else {
-                **self.silhouette, "views_without_mask": self.unreadable_masks},
+            "silhouette_correction": self.silhouette,
             "train_seconds": round(self.seconds, 2),
             "peak_rss_mib": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1),
             "non_finite_gradients_zeroed": self.bad_gradients, "events": self.events,
