@@ -77,3 +77,19 @@ def test_correction_rows_get_their_own_runs_and_a_skipped_row_says_why():
     table = markdown([{"table": CORRECTIONS, "label": "shift by the detector's calibration", "run": names[1],
                        "skipped": "no calibration of detector 'x'"}])
     assert "| shift by the detector's calibration | skipped: no calibration of detector 'x' |" in table
+
+
+def test_rows_are_chosen_by_key_and_an_unknown_key_is_named():
+    import pytest
+
+    from edgedog.bench.ablation import CORRECTIONS, select_rows
+    from edgedog.errors import ConfigError
+
+    keys = [r.key for r in select_rows((COMPONENTS, WEIGHTING, CORRECTIONS))]
+    assert keys[:8] == ["baseline", "dog", "pixel", "fisher", "dog+pixel", "dog+fisher", "pixel+fisher", "full"]
+    assert len(set(keys[8:13])) == 5 and len(set(keys[13:])) == 7
+    chosen = select_rows((CORRECTIONS,), ("outline+profile", "raw"))
+    assert [r.key for r in chosen] == ["raw", "outline+profile"]  # table order, not the order asked
+    assert chosen[1].changes["edge_profile"] == "profile"
+    with pytest.raises(ConfigError, match="no row full in the tables corrections"):
+        select_rows((CORRECTIONS,), ("full",))

@@ -29,9 +29,11 @@ TITLES = {COMPONENTS: "Components (Table 3)", WEIGHTING: "Weighting of the pixel
 
 @dataclass(frozen=True)
 class AblationRow:
-    """One row: which table, its label, and the settings it changes from the base config."""
+    """One row: which table, its short key (`--rows`), its label, and the settings it changes
+    from the base config."""
 
     table: str
+    key: str
     label: str
     changes: dict
 
@@ -44,7 +46,9 @@ def component_rows() -> list[AblationRow]:
     for dog, pixel, primitive in combos:
         parts = [name for name, on in (("DoG", dog), ("pixel U", pixel), ("Fisher U", primitive)) if on]
         label = "baseline (EdgeGaussians)" if not parts else "+ " + " + ".join(parts)
-        rows.append(AblationRow(COMPONENTS, "full EdgeDoG" if len(parts) == 3 else label, {
+        key = "+".join(k for k, on in (("dog", dog), ("pixel", pixel), ("fisher", primitive)) if on)
+        key = {"": "baseline", "dog+pixel+fisher": "full"}.get(key, key)
+        rows.append(AblationRow(COMPONENTS, key, "full EdgeDoG" if len(parts) == 3 else label, {
             "kernel": "dog" if dog else "gaussian", "pixel_uncertainty": bool(pixel),
             "primitive_uncertainty": bool(primitive)}))
     return rows
@@ -54,7 +58,7 @@ def weighting_rows() -> list[AblationRow]:
     """Table 4: the full model with each weighting function w(Up)."""
     names = {"one": "w = 1", "exp_neg": "w = exp(-Up)", "one_minus": "w = 1 - Up", "up": "w = Up",
              "exp": "w = exp(Up)"}
-    return [AblationRow(WEIGHTING, label, {"kernel": "dog", "pixel_uncertainty": True,
+    return [AblationRow(WEIGHTING, name, label, {"kernel": "dog", "pixel_uncertainty": True,
                                            "primitive_uncertainty": True, "weighting": name})
             for name, label in names.items()]
 
@@ -62,17 +66,30 @@ def weighting_rows() -> list[AblationRow]:
 def correction_rows() -> list[AblationRow]:
     """The full model on the raw maps and with each correction of the maps' bias."""
     plain = {"silhouette_correction": "none"}  # one correction at a time
-    rows = {"raw maps": plain,
-            "shift by the detector's calibration": {**plain, "map_correction": "calibrated"},
-            "shift learned with the primitives": {**plain, "map_correction": "learned"},
-            "thinned (NMS + narrow profile)": {**plain, "edge_profile": "thin"},
-            "profile loss (render blurred to the band)": {**plain, "edge_profile": "profile"},
-            "outline pulled onto the masks": {"silhouette_correction": "measured"},
-            "outline pulled onto the masks + profile loss": {"silhouette_correction": "measured",
-                                                             "edge_profile": "profile"}}
-    return [AblationRow(CORRECTIONS, label, {"kernel": "dog", "pixel_uncertainty": True,
-                                             "primitive_uncertainty": True, **changes})
-            for label, changes in rows.items()]
+    rows = [("raw", "raw maps", plain),
+            ("calibrated", "shift by the detector's calibration", {**plain, "map_correction": "calibrated"}),
+            ("learned", "shift learned with the primitives", {**plain, "map_correction": "learned"}),
+            ("thin", "thinned (NMS + narrow profile)", {**plain, "edge_profile": "thin"}),
+            ("profile", "profile loss (render blurred to the band)", {**plain, "edge_profile": "profile"}),
+            ("outline", "outline pulled onto the masks", {"silhouette_correction": "measured"}),
+            ("outline+profile", "outline pulled onto the masks + profile loss",
+             {"silhouette_correction": "measured", "edge_profile": "profile"})]
+    return [AblationRow(CORRECTIONS, key, label, {"kernel": "dog", "pixel_uncertainty": True,
+                                                  "primitive_uncertainty": True, **changes})
+            for key, label, changes in rows]
+
+
+def select_rows(tables: tuple[str, ...], keys: tuple[str, ...] | None = None) -> list[AblationRow]:
+    """The rows of `tables` in table order; with `keys`, only the rows with those keys (a
+    ConfigError names any key that is no row of the tables)."""
+    rows = [r for r in component_rows() + weighting_rows() + correction_rows() if r.table in tables]
+    if keys is None:
+        return rows
+    unknown = set(keys) - {r.key for r in rows}
+    if unknown:
+        raise ConfigError(f"--rows: no row {', '.join(sorted(unknown))} in the tables {', '.join(tables)}; "
+                          f"rows: {', '.join(dict.fromkeys(r.key for r in rows))}")
+    return [r for r in rows if r.key in keys]
 
 
 def effective_config(config: TrainConfig) -> TrainConfig:
@@ -119,11 +136,12 @@ def train_and_extract(run: RunFolder, progress: bool) -> tuple[dict, dict]:
 
 
 def run_ablation(scene_path: Path, out: Path, preset_name: str, base: TrainConfig,
-                 tables: tuple[str, ...] = TABLES, progress: bool = True) -> list[dict]:
-    """Train and score every row of the chosen tables (runs shared where configs coincide) in
-    out/<run name>/; `base` is the preset `preset_name` with any overrides. Writes
-    out/ablation.json and out/ablation.md; returns the rows' results."""
-    rows = [r for r in component_rows() + weighting_rows() + correction_rows() if r.table in tables]
+                 tables: tuple[str, ...] = TABLES, progress: bool = True,
+                 keys: tuple[str, ...] | None = None) -> list[dict]:
+    """Train and score every row of the chosen tables, or the rows with `keys` among them (runs
+    shared where configs coincide) in out/<run name>/; `base` is the preset `preset_name` with
+    any overrides. Writes out/ablation.json and out/ablation.md; returns the rows' results."""
+    rows = select_rows(tables, keys)
     results = []
     for row in rows:
         config = effective_config(dataclasses.replace(base, **row.changes))

@@ -47,6 +47,11 @@ def add_parser(subparsers) -> None:
                           help="comma-separated: components (Table 3), weighting (Table 4), corrections "
                                "(the maps' bias: calibrated shift, learned shift, thin maps, profile loss, "
                                "outline pulled onto the masks)")
+    ablation.add_argument("--rows", default=None, metavar="KEY,...",
+                          help="only these rows of the tables: components baseline, dog, pixel, fisher, "
+                               "dog+pixel, dog+fisher, pixel+fisher, full; weighting one, exp_neg, "
+                               "one_minus, up, exp; corrections raw, calibrated, learned, thin, profile, "
+                               "outline, outline+profile")
     ablation.add_argument("--quiet", action="store_true", help="no progress bars")
     ablation.set_defaults(run=run_ablation)
     layers = kinds.add_parser(
@@ -120,7 +125,9 @@ def run_ablation(args: argparse.Namespace) -> None:
     if not tables or any(t not in TABLES for t in tables):
         raise ConfigError(f"--tables must list some of {', '.join(TABLES)}, got {args.tables!r}")
     base = with_overrides(preset(args.preset), args.overrides)
-    results = run_ablation(args.scene, args.out, args.preset, base, tables, progress=not args.quiet)
+    keys = None if args.rows is None else tuple(k.strip() for k in args.rows.split(",") if k.strip())
+    results = run_ablation(args.scene, args.out, args.preset, base, tables, progress=not args.quiet,
+                           keys=keys)
     print(markdown(results))
     print(f"wrote {args.out / 'ablation.json'} and {args.out / 'ablation.md'}")
 
