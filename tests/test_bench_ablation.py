@@ -86,7 +86,8 @@ def test_rows_are_chosen_by_key_and_an_unknown_key_is_named():
     from edgedog.errors import ConfigError
 
     keys = [r.key for r in select_rows((COMPONENTS, WEIGHTING, CORRECTIONS))]
-    assert keys[:8] == ["baseline", "dog", "pixel", "fisher", "dog+pixel", "dog+fisher", "pixel+fisher", "full"]
+    assert keys[:8] == ["baseline", "dog", "pixel", "fisher", "dog+pixel", "dog+fisher", "pixel+fisher",
+                        "full"]
     assert len(set(keys[8:13])) == 5 and len(set(keys[13:])) == 7
     chosen = select_rows((CORRECTIONS,), ("outline+profile", "raw"))
     assert [r.key for r in chosen] == ["raw", "outline+profile"]  # table order, not the order asked
