@@ -70,8 +70,10 @@ class ExtractConfig:
     """A chain is a line when RANSAC finds one holding all but `max_outlier_share` of its vertices
     within this distance; also the collinearity tolerance of merges."""
     max_outlier_share: float = 0.05
-    bezier_tolerance: float = 0.004
-    """A cubic Bézier is kept when its RMS distance to the chain is below this; else it is split."""
+    bezier_tolerance: float = 0.002
+    """A cubic Bézier is kept when its RMS distance to the chain is below this; else it is split.
+    At 0.004 (7 mm on an ABC object) one Bézier cut across a rounded corner 8 mm inside it;
+    0.002 raised F5 on all four ABC runs measured (docs/BENCHMARKS.md) for 3 to 8 more curves."""
     snap_radius: float = 0.01
     """Curve ends this close, or whose extensions meet within it, are snapped to one junction
     point; a chain end this close to another chain's interior splits it there (a T)."""
