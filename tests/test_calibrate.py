@@ -25,7 +25,7 @@ from edgedog.edges.calibrate import (
     silhouette_sides,
 )
 from edgedog.edges.classical import CannyDetector
-from edgedog.edges.correct import blur_to_profile, shift_edge_map, warp_target
+from edgedog.edges.correct import blur_to_profile, gaussian_kernel, shift_edge_map, warp_target
 from edgedog.edges.detector import EdgeDetector
 from edgedog.edges.thin import thin_edge_map
 from edgedog.scenes import load_scene
@@ -138,6 +138,13 @@ def test_blur_to_profile_widens_a_thin_line_to_the_given_sigma():
     assert np.sqrt((row * offsets**2).sum()) == pytest.approx(1.5, abs=0.02)
     blurred.sum().backward()
     assert line.grad is not None and torch.isfinite(line.grad).all()
+
+
+def test_blur_to_profile_is_opencvs_separable_filter_with_zero_borders():
+    image = np.random.default_rng(3).random((37, 52)).astype(np.float32)
+    kernel = gaussian_kernel(0.8).numpy()
+    expected = cv2.sepFilter2D(image, -1, kernel, kernel, borderType=cv2.BORDER_CONSTANT)
+    np.testing.assert_allclose(blur_to_profile(torch.from_numpy(image), 0.8).numpy(), expected, atol=1e-6)
 
 
 def synthetic_calibration(detector: EdgeDetector) -> DetectorCalibration:
