@@ -6,6 +6,7 @@ import argparse
 import json
 from pathlib import Path
 
+from edgedog.bench.ablation import TABLES, select_rows
 from edgedog.files import atomic_write_json
 
 
@@ -48,10 +49,9 @@ def add_parser(subparsers) -> None:
                                "(the maps' bias: calibrated shift, learned shift, thin maps, profile loss, "
                                "outline pulled onto the masks)")
     ablation.add_argument("--rows", default=None, metavar="KEY,...",
-                          help="only these rows of the tables: components baseline, dog, pixel, fisher, "
-                               "dog+pixel, dog+fisher, pixel+fisher, full; weighting one, exp_neg, "
-                               "one_minus, up, exp; corrections raw, calibrated, learned, thin, profile, "
-                               "outline, outline+profile")
+                          help="only these rows of the tables: " + "; ".join(
+                              f"{table} " + ", ".join(row.key for row in select_rows((table,)))
+                              for table in TABLES))
     ablation.add_argument("--quiet", action="store_true", help="no progress bars")
     ablation.set_defaults(run=run_ablation)
     layers = kinds.add_parser(
@@ -117,7 +117,7 @@ def run_raster(args: argparse.Namespace) -> None:
 
 
 def run_ablation(args: argparse.Namespace) -> None:
-    from edgedog.bench.ablation import TABLES, markdown, run_ablation
+    from edgedog.bench.ablation import markdown, run_ablation
     from edgedog.errors import ConfigError
     from edgedog.train.config import preset, with_overrides
 

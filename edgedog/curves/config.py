@@ -34,8 +34,8 @@ class ExtractConfig:
     """Statistical outliers: drop points whose mean distance to their `outlier_neighbours` nearest
     points exceeds the mean of that value over all points by `outlier_std` standard deviations.
     EdgeGaussians use 25 neighbours; an edge held by fewer primitives than that (a sparse circle)
-    then reaches across to other edges and is dropped whole, so 8 is the default (on three ABC
-    runs: Comp 18.0 -> 11.3, 9.4 -> 8.1, 9.8 -> 7.3 mm; docs/BENCHMARKS.md)."""
+    then reaches across to other edges and is dropped whole, so 8 is the default (on four ABC
+    runs: Comp 18.0 -> 11.3, 12.0 -> 6.8, 9.8 -> 7.3, 9.4 -> 8.1 mm; docs/BENCHMARKS.md)."""
 
     # --- directions
     min_elongation: float = 1.5
@@ -72,7 +72,7 @@ class ExtractConfig:
     max_outlier_share: float = 0.05
     bezier_tolerance: float = 0.002
     """A cubic Bézier is kept when its RMS distance to the chain is below this; else it is split.
-    At 0.004 (7 mm on an ABC object) one Bézier cut across a rounded corner 8 mm inside it;
+    At 0.004 (7 mm on an ABC object) one Bézier cut up to 7.7 mm inside a rounded part;
     0.002 raised F5 on all four ABC runs measured (docs/BENCHMARKS.md) for 3 to 8 more curves."""
     snap_radius: float = 0.01
     """Curve ends this close, or whose extensions meet within it, are snapped to one junction
