@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import subprocess
 import sys
@@ -212,6 +213,9 @@ class _TwoViewScene:
         assert detector == self.detector
         return self.maps[i]
 
+    def load_mask(self, i):
+        return None  # no masks: the silhouette filter is skipped
+
 
 def test_mean_edge_value_counts_unseen_views_as_zero():
     scene = _TwoViewScene()
@@ -224,6 +228,43 @@ def test_mean_edge_value_counts_unseen_views_as_zero():
     np.testing.assert_allclose(values, [0.5, 0.0])
     keep = filtering.projection_mask(np.vstack([on_edge, off_edge]), scene, "exact", 0.1)
     assert keep.tolist() == [True, False]
+
+
+class _MaskedScene(_TwoViewScene):
+    """View 0's object mask is the 10 columns 45-54 (1 px = 0.06 world units at the origin);
+    view 1's image cannot be read."""
+
+    def load_mask(self, i):
+        if i == 1:
+            raise InputError("view_1.png", "cannot be decoded as an image")
+        mask = np.zeros((100, 100), bool)
+        mask[:, 45:55] = True
+        return mask
+
+
+def test_silhouette_filter_drops_points_outside_the_masks():
+    # 0, 7.3 and 10.3 px from the image centre (column 49.5): 0, 3 and 6 px outside the mask
+    points = np.array([[0.0, 0.0, 0.0], [7.3 * 0.06, 0.0, 0.1], [-10.3 * 0.06, 0.0, -0.1]])
+    outside = filtering.pixels_outside_masks(points, _MaskedScene())
+    np.testing.assert_allclose(outside, [0.0, 3.0, 6.0], atol=1e-3)
+    assert filtering.silhouette_mask(points, _MaskedScene(), 4.0).tolist() == [True, True, False]
+    assert filtering.silhouette_mask(points, _MaskedScene(), 2.0).tolist() == [True, False, False]
+    assert filtering.silhouette_mask(points, _TwoViewScene(), 4.0) is None
+
+
+def test_extract_run_counts_the_silhouette_filter_after_the_outliers(tmp_path):
+    points, tangents = segment([0.0, 0.0, -0.2], [0.0, 0.0, 0.2], 0.002)
+    beside = points + [10.3 * 0.06, 0.0, 0.0]  # an edge-like tube 6 px outside the mask
+    write_primitives(tmp_path / "primitives.ply", np.vstack([points, beside]),
+                     np.vstack([tangents, tangents]), 0.6)
+    config = ExtractConfig(filter_projection=False)
+    result = extract_run(tmp_path, config, _MaskedScene(), "exact")
+    assert list(result.counts)[:4] == ["primitives", "after_opacity", "after_outliers", "after_silhouette"]
+    kept = result.points.points
+    assert len(kept) > 0.95 * len(points) and np.abs(kept[:, 0]).max() < 1e-6  # only the inside tube
+    assert result.curves.num_curves == 1
+    off = extract_run(tmp_path, dataclasses.replace(config, filter_silhouette=False), _MaskedScene(), "exact")
+    assert "after_silhouette" not in off.counts and off.curves.num_curves == 2
 
 
 # --- runs ---------------------------------------------------------------------------------------
@@ -292,6 +333,7 @@ def test_extract_run_filters_fits_and_writes_its_outputs(tmp_path):
     c = result.counts
     assert c["primitives"] == len(cloud) and c["after_opacity"] == len(points) + len(stray)
     assert c["after_projection"] == len(points) and "after_outliers" not in c
+    assert "after_silhouette" not in c  # the scene has no masks
     assert c["chains"] == 1 and c["lines"] == 1 and c["beziers"] == 0
     np.testing.assert_allclose(np.sort(result.curves.lines[0, :, 2]), [-0.2, 0.2], atol=0.01)
     for name in ("curves.json", "curves.obj", "curves.ply"):
@@ -306,7 +348,7 @@ def test_extract_run_filters_fits_and_writes_its_outputs(tmp_path):
 def test_extract_run_with_nothing_left_writes_empty_files(tmp_path):
     points, tangents = segment([0.0, 0.0, -0.2], [0.0, 0.0, 0.2], 0.002)
     write_primitives(tmp_path / "primitives.ply", points, tangents, 0.1)
-    result = extract_run(tmp_path, ExtractConfig(filter_projection=False))
+    result = extract_run(tmp_path, ExtractConfig(filter_projection=False, filter_silhouette=False))
     assert result.counts["after_opacity"] == 0 and result.curves.num_curves == 0
     for name in ("curves.json", "curves.obj", "curves.ply", "edge_points.ply"):
         assert read_edges(tmp_path / name).is_empty

@@ -12,12 +12,12 @@ def add_parser(subparsers) -> None:
     parser = subparsers.add_parser(
         "extract", help="fit parametric curves (lines, cubic Béziers) to a trained run's edge points",
         description="Filter the primitives of a run (opacity, mean edge value over all views, "
-                    "statistical outliers), group them into curves and fit lines and cubic "
-                    "Béziers. Writes curves.json (EMAP format), curves.obj, curves.ply, "
-                    "edge_points.ply and extract.json into the run folder; when the scene has "
-                    "ground truth, prints the scores of the filtered points and of the curves. "
-                    "A layered run (edgedog train --layers) gets curves per layer and per "
-                    "cumulative stack in RUN/curves/NAME (L0, L1, L0+L1, ...).")
+                    "statistical outliers, outside the object's masks), group them into curves "
+                    "and fit lines and cubic Béziers. Writes curves.json (EMAP format), "
+                    "curves.obj, curves.ply, edge_points.ply and extract.json into the run "
+                    "folder; when the scene has ground truth, prints the scores of the filtered "
+                    "points and of the curves. A layered run (edgedog train --layers) gets curves "
+                    "per layer and per cumulative stack in RUN/curves/NAME (L0, L1, L0+L1, ...).")
     parser.add_argument("run_dir", metavar="RUN", type=Path, help="run folder written by `edgedog train`")
     parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                         help="override a setting of edgedog.curves.config.ExtractConfig (repeatable)")

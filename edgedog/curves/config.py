@@ -20,7 +20,7 @@ class ExtractConfig:
     edges); cleaner runs can use a smaller `node_spacing` and tolerances.
     """
 
-    # --- filters (EdgeGaussians' post-processing)
+    # --- filters (EdgeGaussians' post-processing, and a silhouette test)
     filter_opacity: bool = True
     min_opacity: float = 0.2
     """Keep primitives whose (activated) opacity is above this."""
@@ -28,6 +28,12 @@ class ExtractConfig:
     min_edge_value: float = 0.1
     """Keep points whose edge-map value, averaged over ALL views, is above this (a view that does
     not see the point counts as 0)."""
+    filter_silhouette: bool = True
+    max_outside_pixels: float = 3.0
+    """Keep points that land at most this many pixels (of the run's views) outside the object's
+    mask in every view; skipped on scenes without masks. Edge maps also draw the occluding
+    contours of curved surfaces, which move with the view and are not edges of the object;
+    training places primitives for them around the object, outside it in some views."""
     filter_outliers: bool = True
     outlier_neighbours: int = 8
     outlier_std: float = 2.0
@@ -93,6 +99,8 @@ class ExtractConfig:
         for name in ("link_angle", "corner_angle"):
             if not 0 < getattr(self, name) < 90:
                 raise ConfigError(f"{name} must be in (0, 90) degrees, got {getattr(self, name)}")
+        if not self.max_outside_pixels >= 0:
+            raise ConfigError(f"max_outside_pixels must be >= 0, got {self.max_outside_pixels}")
         if not 0 <= self.max_outlier_share < 1:
             raise ConfigError(f"max_outlier_share must be in [0, 1), got {self.max_outlier_share}")
 

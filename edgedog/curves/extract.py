@@ -106,8 +106,11 @@ def run_scene(run_dir: Path, maps: bool = True) -> tuple[Scene, str]:
 
 def filter_primitives(primitives: EdgePrimitives, config: ExtractConfig, scene: Scene | None,
                       detector: str | None, counts: dict[str, int]) -> EdgePrimitives:
-    """Apply the switched-on filters in order (opacity, projection, outliers), recording in
-    `counts` how many primitives are left after each."""
+    """Apply the switched-on filters in order (opacity, projection, outliers, silhouette),
+    recording in `counts` how many primitives are left after each (the silhouette filter is
+    skipped, and not counted, on a scene without masks). The silhouette filter comes last:
+    the outlier statistics are relative to the spread of all points, and without the points it
+    removes they drop sparse real edges (half of 00000006's top hole circle)."""
     counts["primitives"] = len(primitives)
     if config.filter_opacity:
         primitives = primitives.subset(filtering.opacity_mask(primitives.opacity, config.min_opacity))
@@ -120,6 +123,11 @@ def filter_primitives(primitives: EdgePrimitives, config: ExtractConfig, scene: 
         keep = filtering.outlier_mask(primitives.points, config.outlier_neighbours, config.outlier_std)
         primitives = primitives.subset(keep)
         counts["after_outliers"] = len(primitives)
+    if config.filter_silhouette:
+        keep = filtering.silhouette_mask(primitives.points, scene, config.max_outside_pixels)
+        if keep is not None:
+            primitives = primitives.subset(keep)
+            counts["after_silhouette"] = len(primitives)
     return primitives
 
 
@@ -140,7 +148,8 @@ def extract_run(run_dir: str | Path, config: ExtractConfig = ExtractConfig(), sc
 
     Args:
         scene, detector: the run's scene and edge maps, when the caller has them; by default
-            read from the run's log.json, and only when the projection filter needs them.
+            read from the run's log.json, and only when the projection or silhouette filter
+            needs them.
         layers: extract only the primitives of these layers (default: all).
         out_dir: where the outputs go (default: the run folder).
     """
@@ -149,7 +158,7 @@ def extract_run(run_dir: str | Path, config: ExtractConfig = ExtractConfig(), sc
     primitives = read_primitives(run_dir / "primitives.ply")
     if layers is not None:
         primitives = primitives.in_layers(layers)
-    if config.filter_projection and (scene is None or detector is None):
+    if (config.filter_projection or config.filter_silhouette) and (scene is None or detector is None):
         scene, detector = run_scene(run_dir)
     counts: dict[str, int] = {}
     points = filter_primitives(primitives, config, scene, detector, counts)

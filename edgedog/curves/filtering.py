@@ -1,10 +1,13 @@
-"""The three point filters of EdgeGaussians' post-processing, each returning a keep mask (N,)."""
+"""Point filters, each returning a keep mask (N,): EdgeGaussians' three (opacity, projection,
+statistical outliers) and a silhouette test of our own."""
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 from scipy.spatial import cKDTree
 
+from edgedog.errors import InputError
 from edgedog.scenes import Scene
 
 
@@ -29,6 +32,33 @@ def mean_edge_values(points: np.ndarray, scene: Scene, detector: str) -> np.ndar
 def projection_mask(points: np.ndarray, scene: Scene, detector: str, min_edge_value: float) -> np.ndarray:
     """Keep the points (N, 3) whose mean edge value over all views is above `min_edge_value`."""
     return mean_edge_values(points, scene, detector) > min_edge_value
+
+
+def pixels_outside_masks(points: np.ndarray, scene: Scene) -> np.ndarray | None:
+    """Largest distance, in pixels, by which each point (N, 3) lands outside the object's mask
+    over the views whose image it lands in; (N,), 0 for a point inside every mask. None when
+    the scene has no masks. A view whose image cannot be read is left out, as in training."""
+    outside = np.zeros(len(points))
+    for i in range(len(scene)):
+        try:
+            mask = scene.load_mask(i)
+        except InputError:
+            continue
+        if mask is None:
+            return None
+        # distance of each background pixel to the nearest object pixel
+        distance = cv2.distanceTransform((~mask).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
+        pixels, inside = scene.camera(i).pixels(points)
+        outside[inside] = np.maximum(outside[inside], distance[pixels[inside, 1], pixels[inside, 0]])
+    return outside
+
+
+def silhouette_mask(points: np.ndarray, scene: Scene, max_outside: float) -> np.ndarray | None:
+    """Keep the points (N, 3) that land at most `max_outside` pixels outside the object's mask in
+    every view: an edge lies on the object's surface, so inside its silhouette from anywhere.
+    None when the scene has no masks."""
+    outside = pixels_outside_masks(points, scene)
+    return None if outside is None else outside <= max_outside
 
 
 def outlier_mask(points: np.ndarray, neighbours: int = 25, std_ratio: float = 2.0) -> np.ndarray:
