@@ -46,6 +46,8 @@ def test_budgets_and_evaluation_epochs():
     d4 = parse_budgets("fast-d4")[0].config(["downscale=8", "epochs=30"])
     assert (d4.downscale, d4.epochs) == (4, 30)  # the budget's own change wins over --set
     assert parse_budgets("fast-50")[0].config(["epochs=30"]).epochs == 15
+    full = parse_budgets("fast-d1")[0].config(["downscale=2"])
+    assert full.downscale == 1 and full.epochs == 100
     assert evaluation_epochs(100, 5) == [20, 40, 60, 80, 100]
     assert evaluation_epochs(3, 5) == [1, 2, 3]
 

@@ -63,6 +63,7 @@ BUDGETS = {b.name: b for b in (
     Budget("fast-d4", "fast", "preset fast at 1/4 resolution", downscale=4),
     Budget("fast-50", "fast", "preset fast with half its epochs", epoch_share=0.5),
     Budget("fast", "fast", "preset fast (100 epochs at 1/2 resolution)"),
+    Budget("fast-d1", "fast", "preset fast at full resolution", downscale=1),
     Budget("paper", "paper", "preset paper (400 epochs at full resolution)"),
 )}
 DEFAULT_BUDGETS = "fast-d4,fast,paper"

@@ -29,7 +29,7 @@ class ExtractConfig:
     """Keep points whose edge-map value, averaged over ALL views, is above this (a view that does
     not see the point counts as 0)."""
     filter_silhouette: bool = True
-    max_outside_pixels: float = 3.0
+    max_outside_pixels: float = 4.0
     """Keep points that land at most this many pixels (of the run's views) outside the object's
     mask in every view; skipped on scenes without masks. Edge maps also draw the occluding
     contours of curved surfaces, which move with the view and are not edges of the object;
