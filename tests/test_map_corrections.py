@@ -36,9 +36,20 @@ def vertical_line(width: int = 40, x: float = 20.0) -> np.ndarray:
 def test_prepared_maps_are_floored_then_shifted_and_masked():
     line = vertical_line()
     config = tiny_config(map_floor=0.5)
-    (target,), (mask,), _ = prepare_maps([line], config, (1.5, 0.0))
+    (target,), (mask,), _ = prepare_maps([line], config, (1.4, 0.0))
     assert np.argmax(target[10]) in (21, 22) and target[10, 20] < line[10, 20]
-    assert mask[10].sum() == (target[10] >= 0.5).sum()
+    # The mask keeps the line's three edge pixels (19-21) and moves them by the nearest whole pixel.
+    assert np.flatnonzero(mask[10]).tolist() == [20, 21, 22]
+
+
+def test_a_faint_thin_line_keeps_its_edge_pixels_when_shifted_by_a_fraction_of_a_pixel():
+    columns = np.arange(40, dtype=np.float32)
+    line = np.tile(0.65 * np.exp(-2.0 * (columns - 20) ** 2), (30, 1)).astype(np.float32)  # sigma 0.5 px
+    config = tiny_config()
+    (target,), (mask,), _ = prepare_maps([line], config, (0.45, 0.0))
+    assert (line >= config.edge_threshold).sum() == 30
+    assert (target >= config.edge_threshold).sum() == 0  # interpolation dims the line below 0.5
+    np.testing.assert_array_equal(mask, line >= config.edge_threshold)  # the nearest pixel is itself
     (thin,), _, _ = prepare_maps([line], dataclasses.replace(config, edge_profile="thin"), (0.0, 0.0))
     assert np.argmax(thin[10]) == 20
 

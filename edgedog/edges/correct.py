@@ -17,19 +17,24 @@ import torch
 import torch.nn.functional as F
 
 
-def shift_edge_map(edge_map: np.ndarray, dx: float, dy: float) -> np.ndarray:
+def shift_edge_map(edge_map: np.ndarray, dx: float, dy: float, nearest: bool = False) -> np.ndarray:
     """Translate a map by a sub-pixel shift, with linear interpolation and zeros coming in.
 
     Args:
-        edge_map: (H, W) float map.
+        edge_map: (H, W) float map, or a bool mask with `nearest`.
         dx, dy: the shift in px (content moves right and down for positive values).
+        nearest: sample the nearest pixel instead: for masks of edge pixels, whose thin lines
+            would fall below the edge threshold if interpolated (as in `pull_to_outline`).
     Returns:
-        (H, W) float32 map with out(x, y) = edge_map(x - dx, y - dy).
+        (H, W) float32 map with out(x, y) = edge_map(x - dx, y - dy) (bool with `nearest` on a
+        bool mask).
     """
     height, width = edge_map.shape
     matrix = np.array([[1.0, 0.0, dx], [0.0, 1.0, dy]])
-    return cv2.warpAffine(np.asarray(edge_map, np.float32), matrix, (width, height), flags=cv2.INTER_LINEAR,
-                          borderMode=cv2.BORDER_CONSTANT, borderValue=0.0)
+    shifted = cv2.warpAffine(np.asarray(edge_map, np.float32), matrix, (width, height),
+                             flags=cv2.INTER_NEAREST if nearest else cv2.INTER_LINEAR,
+                             borderMode=cv2.BORDER_CONSTANT, borderValue=0.0)
+    return shifted > 0.5 if edge_map.dtype == bool else shifted
 
 
 def warp_target(target: torch.Tensor, shift: torch.Tensor) -> torch.Tensor:

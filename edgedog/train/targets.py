@@ -108,15 +108,17 @@ def prepare_maps(maps: list[np.ndarray], config: TrainConfig, shift: tuple[float
     """Targets and edge masks from (H, W) maps: values under `map_floor` zeroed, the shift
     applied, then the silhouettes pulled onto the views' `outlines` when given (see
     `corrects_silhouettes`); the masks (map >= edge_threshold, for the sampled loss and the
-    projection cull) are taken before the pull and pulled with the maps, by nearest pixel;
-    the 'thin' profile is drawn last, for the targets only. The third value is the silhouette
-    report (None when not corrected)."""
+    projection cull) are taken before the shift and the pull and moved with the maps by
+    nearest pixel (interpolation dims thin lines below the threshold); the 'thin' profile is
+    drawn last, for the targets only. The third value is the silhouette report (None when not
+    corrected)."""
     if config.map_floor > 0:
         maps = [np.where(m >= config.map_floor, m, 0).astype(np.float32) for m in maps]
+    masks = [m >= config.edge_threshold for m in maps]
     if shift != (0.0, 0.0):
         maps = [shift_edge_map(m, *shift) for m in maps]
+        masks = [shift_edge_map(k, *shift, nearest=True) for k in masks]
     silhouette = None
-    masks = [m >= config.edge_threshold for m in maps]
     if outlines is not None:
         maps, masks, silhouette = correct_silhouettes(maps, masks, outlines, config.silhouette_reach)
     if config.edge_profile == "thin":
