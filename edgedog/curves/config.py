@@ -58,8 +58,10 @@ class ExtractConfig:
     """More iterations thin the point tube further but merge nearby parallel edges."""
     node_spacing: float = 0.006
     """Spacing of the chain vertices the points are thinned to."""
-    link_distance: float = 0.03
-    """Longest link between two vertices of a chain."""
+    link_distance: float = 0.06
+    """Longest link between two vertices of a chain (each vertex links only among its 8
+    nearest). 0.03 before: 0.06 bridges the sparse stretches of faint curved edges; on 21 ABC
+    runs F10 +0.37 on average, at worst -1.2 (docs/BENCHMARKS.md)."""
     join_distance: float = 0.045
     """Longest gap bridged between two chain ends that face each other (a curve broken where
     points are missing; the two ends of a circle)."""
