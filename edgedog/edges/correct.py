@@ -18,7 +18,8 @@ import torch.nn.functional as F
 
 
 def shift_edge_map(edge_map: np.ndarray, dx: float, dy: float, nearest: bool = False) -> np.ndarray:
-    """Translate a map by a sub-pixel shift, with linear interpolation and zeros coming in.
+    """Translate a map by a sub-pixel shift (linear interpolation, or the nearest pixel), with
+    zeros coming in.
 
     Args:
         edge_map: (H, W) float map, or a bool mask with `nearest`.
