@@ -354,6 +354,17 @@ def test_extract_run_with_nothing_left_writes_empty_files(tmp_path):
         assert read_edges(tmp_path / name).is_empty
 
 
+def test_the_silhouette_filter_alone_needs_no_edge_maps(builtin_scene_dir, tmp_path):
+    points, tangents = segment([0.4, 0.4, 0.2], [0.6, 0.4, 0.2], 0.002)
+    write_primitives(tmp_path / "primitives.ply", points, tangents, 0.6)
+    # maps of an unknown detector: only the projection filter would ask for them
+    (tmp_path / "log.json").write_text(json.dumps({"scene": str(builtin_scene_dir), "detector": "no-such-maps"}))
+    result = extract_run(tmp_path, ExtractConfig(filter_projection=False))
+    assert "after_silhouette" in result.counts
+    with pytest.raises(ConfigError, match="no-such-maps"):
+        extract_run(tmp_path, ExtractConfig())
+
+
 @pytest.mark.shared_data
 def test_cli_extract_on_ground_truth_primitives(abc_nef_scene_dir, tmp_path):
     from edgedog.scenes import load_scene

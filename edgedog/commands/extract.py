@@ -48,7 +48,7 @@ def run(args: argparse.Namespace) -> None:
     config = with_overrides(ExtractConfig(), args.overrides)
     if is_layered(args.run_dir):
         return extract_layered_run(args.run_dir, config)
-    scene, detector = run_scene(args.run_dir)
+    scene, detector = run_scene(args.run_dir, maps=config.filter_projection)
     _, report = extract_with_report(args.run_dir, scene, detector, config)
     print_report(report)
     print(f"wrote {', '.join(OUTPUTS + (REPORT,))} in {args.run_dir}")

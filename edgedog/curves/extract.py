@@ -159,7 +159,7 @@ def extract_run(run_dir: str | Path, config: ExtractConfig = ExtractConfig(), sc
     if layers is not None:
         primitives = primitives.in_layers(layers)
     if (config.filter_projection or config.filter_silhouette) and (scene is None or detector is None):
-        scene, detector = run_scene(run_dir)
+        scene, detector = run_scene(run_dir, maps=config.filter_projection)  # masks need no maps
     counts: dict[str, int] = {}
     points = filter_primitives(primitives, config, scene, detector, counts)
     directions = edge_directions(points, config)
