@@ -358,7 +358,8 @@ def test_the_silhouette_filter_alone_needs_no_edge_maps(builtin_scene_dir, tmp_p
     points, tangents = segment([0.4, 0.4, 0.2], [0.6, 0.4, 0.2], 0.002)
     write_primitives(tmp_path / "primitives.ply", points, tangents, 0.6)
     # maps of an unknown detector: only the projection filter would ask for them
-    (tmp_path / "log.json").write_text(json.dumps({"scene": str(builtin_scene_dir), "detector": "no-such-maps"}))
+    log = {"scene": str(builtin_scene_dir), "detector": "no-such-maps"}
+    (tmp_path / "log.json").write_text(json.dumps(log))
     result = extract_run(tmp_path, ExtractConfig(filter_projection=False))
     assert "after_silhouette" in result.counts
     with pytest.raises(ConfigError, match="no-such-maps"):
