@@ -6,9 +6,11 @@ from __future__ import annotations
 from edgedog.app import layout
 from edgedog.app.extraction import EXPORT_FORMATS
 from edgedog.app.layers import layer_members, list_new_layers
-from edgedog.app.state import COLOR_MODES, KERNELS, PRESETS, WEIGHTINGS
+from edgedog.app.state import COLOR_MODES, KERNELS, WEIGHTINGS
 from edgedog.app.worker import FAILED, FINISHED, PAUSED, STOPPED
 from imgui_bundle import imgui
+
+from edgedog.train.config import PRESETS
 
 ERROR_COLOR = imgui.ImVec4(1.0, 0.4, 0.35, 1.0)
 KEEP_RATIO_RANGE = (0.1, 1.0)

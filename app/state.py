@@ -14,7 +14,6 @@ from typing import Any
 from edgedog.train.config import TrainConfig, Weighting, with_epochs
 
 WEIGHTINGS: tuple[str, ...] = typing.get_args(Weighting)
-PRESETS = ("paper", "fast")
 KERNELS = ("dog", "gaussian")
 COLOR_MODES = ("white", "opacity", "DoG a", "DoG t")
 """What the splats are coloured by: nothing, their opacity, or the inner scale a or the

@@ -42,11 +42,11 @@ def test_rows_that_train_identically_share_a_run():
 
 
 def test_weighting_table_trains_scores_and_reuses_its_runs(builtin_scene_dir, tmp_path):
-    base = dataclasses.replace(preset("fast"), downscale=4, epochs=4, init_count=300, duplicate_epochs=(1,),
-                               opacity_from_epoch=0, scales_from_epoch=0,
+    base = dataclasses.replace(preset("preview"), downscale=4, epochs=4, init_count=300,
+                               duplicate_epochs=(1,), opacity_from_epoch=0, scales_from_epoch=0,
                                cull_projection_epochs=(), cull_opacity_epochs=(), fisher_every=1,
                                checkpoint_every=4, init_side=0.8)
-    results = run_ablation(builtin_scene_dir, tmp_path, "fast", base, (WEIGHTING,), progress=False)
+    results = run_ablation(builtin_scene_dir, tmp_path, "preview", base, (WEIGHTING,), progress=False)
     assert [r["table"] for r in results] == [WEIGHTING] * 5
     runs = sorted(p.name for p in tmp_path.iterdir() if p.is_dir())
     assert len(runs) == 5 and "dog_nopix_fisher_outline-auto" in runs  # w = 1 is the run without the term
@@ -59,7 +59,7 @@ def test_weighting_table_trains_scores_and_reuses_its_runs(builtin_scene_dir, tm
     table = (tmp_path / "ablation.md").read_text()
     assert table.count("| w = ") == 5 and COMPONENTS not in table
     stamps = {run: (tmp_path / run / "log.json").stat().st_mtime_ns for run in runs}
-    again = run_ablation(builtin_scene_dir, tmp_path, "fast", base, (WEIGHTING,), progress=False)
+    again = run_ablation(builtin_scene_dir, tmp_path, "preview", base, (WEIGHTING,), progress=False)
     assert again == results
     assert stamps == {run: (tmp_path / run / "log.json").stat().st_mtime_ns for run in runs}
     assert markdown(again) == table
@@ -68,7 +68,7 @@ def test_weighting_table_trains_scores_and_reuses_its_runs(builtin_scene_dir, tm
 def test_correction_rows_get_their_own_runs_and_a_skipped_row_says_why():
     from edgedog.bench.ablation import CORRECTIONS, correction_rows
 
-    base = preset("fast")
+    base = preset("preview")
     names = [run_name(effective_config(dataclasses.replace(base, **row.changes)))
              for row in correction_rows()]
     assert len(set(names)) == len(names) == 7 and names[0] == "dog_pix-exp_fisher"  # no correction at all

@@ -25,7 +25,7 @@ from edgedog.files import read_json
 # that the box has scored curves after two epochs.
 TINY = ["epochs=6", "downscale=4", "init_method=uniform", "init_side=0.8", "opacity_from_epoch=0",
         "scales_from_epoch=0", "duplicate_epochs=1,2"]
-BUDGETS = "fast-d4,fast-50"  # 6 and 3 epochs
+BUDGETS = "preview-d4,preview-50"  # 6 and 3 epochs
 
 
 def without_seconds(points) -> list[dict]:
@@ -41,12 +41,13 @@ def bench(builtin_scene_dir, tmp_path_factory):
 
 
 def test_budgets_and_evaluation_epochs():
-    assert [b.name for b in parse_budgets("fast-d4, fast,fast-d4")] == ["fast-d4", "fast"]
-    assert [b.config([]).epochs for b in parse_budgets("fast,fast-50,paper")] == [100, 50, 400]
-    d4 = parse_budgets("fast-d4")[0].config(["downscale=8", "epochs=30"])
+    assert [b.name for b in parse_budgets("preview-d4, fast,preview-d4")] == ["preview-d4", "fast"]
+    epochs = [b.config([]).epochs for b in parse_budgets("preview,preview-50,fast,paper")]
+    assert epochs == [100, 50, 200, 400]
+    d4 = parse_budgets("preview-d4")[0].config(["downscale=8", "epochs=30"])
     assert (d4.downscale, d4.epochs) == (4, 30)  # the budget's own change wins over --set
-    assert parse_budgets("fast-50")[0].config(["epochs=30"]).epochs == 15
-    full = parse_budgets("fast-d1")[0].config(["downscale=2"])
+    assert parse_budgets("preview-50")[0].config(["epochs=30"]).epochs == 15
+    full = parse_budgets("preview-d1")[0].config(["downscale=2"])
     assert full.downscale == 1 and full.epochs == 100
     assert evaluation_epochs(100, 5) == [20, 40, 60, 80, 100]
     assert evaluation_epochs(3, 5) == [1, 2, 3]
@@ -56,9 +57,9 @@ def test_rows_scores_and_summary_files(bench):
     out, results = bench
     with open(out / "speed_error.csv", newline="") as file:
         rows = list(csv.DictReader(file))
-    assert [(r["budget"], int(r["epoch"])) for r in rows] == [("fast-d4", 3), ("fast-d4", 6),
-                                                               ("fast-50", 2), ("fast-50", 3)]
-    for budget in ("fast-d4", "fast-50"):
+    assert [(r["budget"], int(r["epoch"])) for r in rows] == [("preview-d4", 3), ("preview-d4", 6),
+                                                               ("preview-50", 2), ("preview-50", 3)]
+    for budget in ("preview-d4", "preview-50"):
         seconds = [float(r["seconds"]) for r in rows if r["budget"] == budget]
         assert 0 < seconds[0] < seconds[1]
     for row in rows:
@@ -73,12 +74,12 @@ def test_rows_scores_and_summary_files(bench):
         assert 0 < float(row["points_fscore_10mm"]) <= 100
     assert all(int(rows[i]["curves"]) > 0 for i in (1, 3))  # each budget ends with scored curves
     table = (out / "speed_error.md").read_text()
-    assert table.count("| fast-d4 | 100x100 | 6/6 |") == 2 and table.count("| fast-50 | 100x100 |") == 3
+    assert table.count("| preview-d4 | 100x100 | 6/6 |") == 2 and table.count("| preview-50 | 100x100 |") == 3
     image = cv2.imread(str(out / "speed_error.png"))
     assert image is not None and image.shape[0] > 300 and image.shape[1] > 600
     coloured = (image.max(axis=2).astype(int) - image.min(axis=2)) > 60  # the budgets' lines
     assert coloured.sum() > 200 and image.std() > 10
-    assert read_json(out / "fast-d4" / "log.json")["final_primitives"] == results[0].points[-1].primitives
+    assert read_json(out / "preview-d4" / "log.json")["final_primitives"] == results[0].points[-1].primitives
 
 
 def test_a_second_invocation_reuses_every_budget(bench, builtin_scene_dir, monkeypatch, capsys):
@@ -93,7 +94,7 @@ def test_a_second_invocation_reuses_every_budget(bench, builtin_scene_dir, monke
             "--evals", "2", "--quiet"] + [a for kv in TINY for a in ("--set", kv)]
     assert main(args) == 0
     printed = capsys.readouterr().out
-    assert "| fast-50 | 100x100 | 3/3 |" in printed and str(out / SUMMARY[2]) in printed
+    assert "| preview-50 | 100x100 | 3/3 |" in printed and str(out / SUMMARY[2]) in printed
     assert stamps and stamps == {p: p.stat().st_mtime_ns for p in out.glob("*/checkpoint.pt")}
 
 
@@ -118,17 +119,17 @@ def test_a_killed_bench_resumes_to_the_rows_of_an_uninterrupted_one(bench, built
         return point
 
     monkeypatch.setattr(speed_error, "evaluate", evaluate_then_die_mid_epoch)
-    budgets = parse_budgets("fast-50")
+    budgets = parse_budgets("preview-50")
     with pytest.raises(Killed):
         run_speed_error(builtin_scene_dir, tmp_path, budgets, TINY, evals=2, progress=False)
-    assert [p["epoch"] for p in read_json(tmp_path / "fast-50" / "speed_error.json")["points"]] == [2]
+    assert [p["epoch"] for p in read_json(tmp_path / "preview-50" / "speed_error.json")["points"]] == [2]
     monkeypatch.undo()
     resumed = run_speed_error(builtin_scene_dir, tmp_path, budgets, TINY, evals=2, progress=False)
     assert without_seconds(resumed[0].points) == without_seconds(bench[1][1].points)
 
 
 def test_evaluating_along_the_way_leaves_training_unchanged(bench, builtin_scene_dir, tmp_path):
-    budgets = parse_budgets("fast-50")
+    budgets = parse_budgets("preview-50")
     once = run_speed_error(builtin_scene_dir, tmp_path, budgets, TINY, evals=1, progress=False)
     assert without_seconds(once[0].points) == without_seconds(bench[1][1].points[-1:])
 
@@ -140,14 +141,16 @@ def test_bad_input_is_one_line(builtin_scene_dir, bench, tmp_path, capsys):
         assert message.startswith("edgedog: error: ") and message.count("\n") == 1
         return message
 
-    assert "--budgets must list some of fast-d4" in error(builtin_scene_dir, "--out", tmp_path / "a",
+    assert "--budgets must list some of preview-d4" in error(builtin_scene_dir, "--out", tmp_path / "a",
                                                            "--budgets", "fast,turbo")
     assert "--evals must be at least 1" in error(builtin_scene_dir, "--out", tmp_path / "a", "--evals", "0")
     bare = tmp_path / "no_gt"
     shutil.copytree(builtin_scene_dir, bare, ignore=shutil.ignore_patterns("gt"))
-    assert "needs a scene with ground truth" in error(bare, "--out", tmp_path / "b", "--budgets", "fast-d4")
-    assert not (tmp_path / "b" / "fast-d4" / "checkpoint.pt").exists()
+    assert "needs a scene with ground truth" in error(bare, "--out", tmp_path / "b",
+                                                      "--budgets", "preview-d4")
+    assert not (tmp_path / "b" / "preview-d4" / "checkpoint.pt").exists()
+    d4 = parse_budgets("preview-d4")
     with pytest.raises(InputError, match="holds evaluations at epochs"):
-        run_speed_error(builtin_scene_dir, bench[0], parse_budgets("fast-d4"), TINY, evals=3, progress=False)
+        run_speed_error(builtin_scene_dir, bench[0], d4, TINY, evals=3, progress=False)
     with pytest.raises(InputError, match="another scene or configuration"):
-        run_speed_error(builtin_scene_dir, bench[0], parse_budgets("fast-d4"), TINY[1:], progress=False)
+        run_speed_error(builtin_scene_dir, bench[0], d4, TINY[1:], progress=False)

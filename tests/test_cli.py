@@ -139,7 +139,7 @@ def test_init_reports_the_method_and_writes_points(builtin_scene_dir, tmp_path):
 def test_train_writes_a_run_and_refuses_to_overwrite_it(builtin_scene_dir, tmp_path):
     run = tmp_path / "run"
     settings = ["--set", "epochs=2", "--set", "downscale=4", "--set", "init_count=200", "--quiet"]
-    result = edgedog("train", builtin_scene_dir, "--out", run, "--preset", "fast", *settings)
+    result = edgedog("train", builtin_scene_dir, "--out", run, "--preset", "preview", *settings)
     assert result.returncode == 0, result.stderr
     assert "trained" in result.stdout
     log = json.loads((run / "log.json").read_text())

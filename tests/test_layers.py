@@ -128,7 +128,7 @@ def test_residual_init_skips_edges_the_lower_layers_render(box, tmp_path):
 @pytest.fixture(scope="module")
 def layered_run(builtin_scene_dir, tmp_path_factory):
     run = tmp_path_factory.mktemp("layered") / "run"
-    result = edgedog("train", builtin_scene_dir, "--out", run, "--preset", "fast", "--layers", "L0,L1",
+    result = edgedog("train", builtin_scene_dir, "--out", run, "--preset", "preview", "--layers", "L0,L1",
                      *LEVELS, *TINY, "--quiet")
     assert result.returncode == 0, result.stderr
     return run, result.stdout
@@ -214,7 +214,7 @@ def test_layers_bench_compares_the_stack_with_the_direct_run(builtin_scene_dir, 
 
     levels = resolve_levels(["L0", "L1"], ["L0=canny:150,300", "L1=canny:30,90"])
     config = tiny_config()
-    results = run_layers_bench(builtin_scene_dir, tmp_path, "fast", config, levels, progress=False,
+    results = run_layers_bench(builtin_scene_dir, tmp_path, "preview", config, levels, progress=False,
                                figure=False)
     names = [row["selection"] for row in results["rows"]]
     assert names == ["L0", "L1", "L0+L1", "direct (L1 maps)"]
@@ -223,10 +223,10 @@ def test_layers_bench_compares_the_stack_with_the_direct_run(builtin_scene_dir, 
     table = (tmp_path / "layers.md").read_text()
     assert table == markdown(results) and "| direct (L1 maps) |" in table
     stamp = (tmp_path / "direct" / "checkpoint.pt").stat().st_mtime_ns
-    again = run_layers_bench(builtin_scene_dir, tmp_path, "fast", config, levels, progress=False,
+    again = run_layers_bench(builtin_scene_dir, tmp_path, "preview", config, levels, progress=False,
                              figure=False)
     assert again["rows"] == results["rows"]
     assert (tmp_path / "direct" / "checkpoint.pt").stat().st_mtime_ns == stamp  # reused, not retrained
     with pytest.raises(InputError, match="another scene, config or levels"):
-        run_layers_bench(builtin_scene_dir, tmp_path, "fast", dataclasses.replace(config, seed=1), levels,
+        run_layers_bench(builtin_scene_dir, tmp_path, "preview", dataclasses.replace(config, seed=1), levels,
                          progress=False, figure=False)

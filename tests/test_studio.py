@@ -53,7 +53,7 @@ BOX_CENTRE = (BOX_MIN + BOX_MAX) / 2
 
 
 def small_config(**changes):
-    return dataclasses.replace(preset("fast"), init_count=300, **changes)
+    return dataclasses.replace(preset("preview"), init_count=300, **changes)
 
 
 # --- the training thread, with a stand-in trainer --------------------------------------------
@@ -74,7 +74,7 @@ class FakeTrainer:
     """What the worker drives: steps that take `step_seconds` and record the controls they read."""
 
     def __init__(self, steps: int = 10_000, step_seconds: float = 0.002, fail_at: int | None = None):
-        self.config = dataclasses.replace(preset("fast"), epochs=steps)
+        self.config = dataclasses.replace(preset("preview"), epochs=steps)
         self.controls = BoundaryControls(self, 0.9, "exp")
         self.step_seconds, self.fail_at = step_seconds, fail_at
         self.step_index, self.in_step, self.seen, self.outputs = 0, False, [], 0
@@ -198,22 +198,22 @@ def test_stopping_a_real_run_keeps_a_checkpoint_it_resumes_from(small_box, tmp_p
 # --- session ---------------------------------------------------------------------------------
 
 def test_a_scene_trains_into_new_run_folders_and_a_run_folder_resumes(small_box, tmp_path):
-    session = Session.open(small_box, tmp_path / "runs", "fast", ["init_count=200", "epochs=2"])
+    session = Session.open(small_box, tmp_path / "runs", "preview", ["init_count=200", "epochs=2"])
     assert session.config.init_count == 200 and session.ground_truth.shape[1] == 3
-    worker = session.start("fast", session.config)
+    worker = session.start("preview", session.config)
     wait_for(lambda: not worker.alive, timeout=60)
     assert worker.phase == FINISHED, worker.error
     first = session.run_dir
     assert read_run(first).config == session.config and (first / "log.json").is_file()
-    session.start("fast", session.config)  # a second start never reuses a folder
+    session.start("preview", session.config)  # a second start never reuses a folder
     assert session.run_dir != first and session.stop()
     reopened = Session.open(first)
     assert reopened.resumable and reopened.runs_root == first.parent
-    assert reopened.config == session.config and reopened.preset == "fast"
-    resumed = reopened.start("fast", reopened.config)
+    assert reopened.config == session.config and reopened.preset == "preview"
+    resumed = reopened.start("preview", reopened.config)
     wait_for(lambda: not resumed.alive, timeout=30)
     assert reopened.run_dir == first and resumed.info.resumed_at_step == 2 * 8
-    reopened.start("fast", reopened.config, fresh=True)
+    reopened.start("preview", reopened.config, fresh=True)
     assert reopened.run_dir != first and reopened.stop()
 
 
@@ -224,10 +224,10 @@ def test_a_run_folder_with_a_bad_config_is_one_error(tmp_path):
 
 
 def test_restart_settings_make_the_config_and_live_ones_go_with_it():
-    state = UIState.for_config("fast", preset("fast"))
+    state = UIState.for_config("preview", preset("preview"))
     state.restart.kernel, state.restart.epochs, state.restart.k_init = "gaussian", 7, (0.5, -0.5)
     state.live.keep_ratio, state.live.weighting = 0.6, "up"
-    config = state.restart.apply(preset("fast"), state.live)
+    config = state.restart.apply(preset("preview"), state.live)
     assert (config.kernel, config.epochs, config.k_init, config.keep_ratio, config.weighting) == \
         ("gaussian", 7, (0.5, -0.5), 0.6, "up")
 
@@ -314,7 +314,7 @@ def test_the_view_frames_the_scene_and_follows_layers_and_colours(small_box, tmp
 def test_expectations_and_assignments():
     assert matches(0.7000000001, 0.7) and not matches(0.71, 0.7) and matches("up", "up")
     assert matches(3, [">", 2]) and not matches(None, [">", 2]) and matches(0, ["<=", 0])
-    state = UIState.for_config("fast", preset("fast"))
+    state = UIState.for_config("preview", preset("preview"))
     assign(state, "live.keep_ratio", 0.5)
     assign(state, "display.layers.L0", False)
     assert state.live.keep_ratio == 0.5 and state.display.layers == {"L0": False}
@@ -325,7 +325,7 @@ def test_expectations_and_assignments():
 def test_a_missed_expectation_fails_the_script_and_closes():
     clock = iter(range(100)).__next__
     studio = type("Studio", (), {})()
-    studio.state = UIState.for_config("fast", preset("fast"))
+    studio.state = UIState.for_config("preview", preset("preview"))
     studio.probe = lambda: {"phase": "starting"}
     driver = ScriptDriver({"actions": [{"expect": {"phase": "training"}, "timeout": 3}]}, clock=clock)
     for _ in range(5):

@@ -19,7 +19,7 @@ from edgedog.train.trainer import Trainer, _finite_grads
 def small_config(**changes) -> TrainConfig:
     """A few epochs at 1/4 resolution with every event early, on 12 of the box's views."""
     base = dataclasses.replace(
-        preset("fast"), downscale=4, epochs=6, init_count=400, duplicate_epochs=(1, 3),
+        preset("preview"), downscale=4, epochs=6, init_count=400, duplicate_epochs=(1, 3),
         cull_projection_epochs=(2,), cull_opacity_epochs=(4,), fisher_every=2, sampled_loss_from_epoch=1,
         ratio_from_epoch=1, direction_from_epoch=2, checkpoint_every=3, snapshot_every=5,
         init_side=0.8)
@@ -123,8 +123,11 @@ def test_config_overrides():
         with_overrides(TrainConfig(), ["nonsense=1"])
     with pytest.raises(ConfigError, match="keep_ratio"):
         with_overrides(TrainConfig(), ["keep_ratio=1.5"])
-    fast = preset("fast")
-    assert fast.epochs == 100 and fast.downscale == 2 and fast.duplicate_epochs[0] == 10
+    preview, fast = preset("preview"), preset("fast")
+    assert preview.epochs == 100 and preview.downscale == 2 and preview.duplicate_epochs[0] == 10
+    assert fast.epochs == 200 and fast.downscale == 1 and fast.fisher_every == 25
+    with pytest.raises(ConfigError, match="choose paper, fast, preview"):
+        preset("turbo")
 
 
 

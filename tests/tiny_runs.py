@@ -11,7 +11,7 @@ from edgedog.train.config import TrainConfig, preset
 
 def tiny_config(**changes) -> TrainConfig:
     """Two epochs at 100 px from 300 uniform points, with `changes` applied."""
-    base = dataclasses.replace(preset("fast"), downscale=4, epochs=2, init_count=300, init_side=0.8,
+    base = dataclasses.replace(preset("preview"), downscale=4, epochs=2, init_count=300, init_side=0.8,
                                init_method="uniform", duplicate_epochs=(), cull_projection_epochs=(),
                                cull_opacity_epochs=(), fisher_every=100, opacity_from_epoch=0,
                                checkpoint_every=2, snapshot_every=5)

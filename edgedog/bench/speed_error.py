@@ -51,8 +51,8 @@ class Budget:
 
     def config(self, overrides: list[str]) -> TrainConfig:
         """The preset with `overrides` (--set) applied, then this budget's own change: the name
-        stays true (fast-d4 trains at downscale 4 whatever --set says) and fast-50 has half the
-        epochs of whatever fast has."""
+        stays true (preview-d4 trains at downscale 4 whatever --set says) and preview-50 has half
+        the epochs of whatever preview has."""
         config = with_overrides(preset(self.preset), overrides)
         if self.downscale is not None:
             config = dataclasses.replace(config, downscale=self.downscale)
@@ -60,17 +60,18 @@ class Budget:
 
 
 BUDGETS = {b.name: b for b in (
-    Budget("fast-d4", "fast", "preset fast at 1/4 resolution", downscale=4),
-    Budget("fast-50", "fast", "preset fast with half its epochs", epoch_share=0.5),
-    Budget("fast", "fast", "preset fast (100 epochs at 1/2 resolution)"),
-    Budget("fast-d1", "fast", "preset fast at full resolution", downscale=1),
+    Budget("preview-d4", "preview", "preset preview at 1/4 resolution", downscale=4),
+    Budget("preview-50", "preview", "preset preview with half its epochs", epoch_share=0.5),
+    Budget("preview", "preview", "preset preview (100 epochs at 1/2 resolution)"),
+    Budget("preview-d1", "preview", "preset preview at full resolution", downscale=1),
+    Budget("fast", "fast", "preset fast (200 epochs at full resolution)"),
     Budget("paper", "paper", "preset paper (400 epochs at full resolution)"),
 )}
-DEFAULT_BUDGETS = "fast-d4,fast,paper"
+DEFAULT_BUDGETS = "preview-d4,preview,fast,paper"
 
 
 def parse_budgets(text: str) -> list[Budget]:
-    """Budgets from a comma-separated list of names (e.g. 'fast-d4,fast')."""
+    """Budgets from a comma-separated list of names (e.g. 'preview-d4,fast')."""
     names = [name.strip() for name in text.split(",") if name.strip()]
     unknown = [name for name in names if name not in BUDGETS]
     if not names or unknown:

@@ -8,6 +8,7 @@ from pathlib import Path
 
 from edgedog.bench.ablation import TABLES, select_rows
 from edgedog.files import atomic_write_json
+from edgedog.train.config import PRESETS
 
 
 def add_parser(subparsers) -> None:
@@ -41,7 +42,7 @@ def add_parser(subparsers) -> None:
                     "runs in OUT are reused, unfinished ones resumed.")
     ablation.add_argument("scene", type=Path, help="scene folder with ground truth")
     ablation.add_argument("--out", type=Path, required=True, help="folder for the runs and the tables")
-    ablation.add_argument("--preset", choices=("paper", "fast"), default="paper")
+    ablation.add_argument("--preset", choices=PRESETS, default="paper")
     ablation.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                           help="override a training setting for every row (repeatable)")
     ablation.add_argument("--tables", default="components,weighting",
@@ -64,7 +65,7 @@ def add_parser(subparsers) -> None:
     layers.add_argument("scene", type=Path, help="scene folder")
     layers.add_argument("--out", type=Path, required=True,
                         help="folder for the runs, the table and the figure")
-    layers.add_argument("--preset", choices=("paper", "fast"), default="fast")
+    layers.add_argument("--preset", choices=PRESETS, default="preview")
     layers.add_argument("--layers", default="L0,L1,L2", metavar="L0,L1,...", help="the levels to stack")
     layers.add_argument("--level", dest="levels", action="append", default=[],
                         metavar="NAME=DETECTOR[@FLOOR]",

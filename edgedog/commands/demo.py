@@ -1,5 +1,5 @@
 """`edgedog demo`: the main job on the built-in scene: generate it on first use, train with the
-fast preset, extract and export the curves, and score them against the exact ground truth."""
+preview preset, extract and export the curves, and score them against the exact ground truth."""
 
 from __future__ import annotations
 
@@ -15,7 +15,7 @@ def add_parser(subparsers) -> None:
     parser = subparsers.add_parser(
         "demo", help="train, extract and score on the built-in scene (generated on first use)",
         description="Generate the built-in scene (a CAD part with exact ground truth) if needed, train "
-                    "it with the fast preset (resuming or reusing an earlier demo run), extract and "
+                    "it with the preview preset (resuming or reusing an earlier demo run), extract and "
                     "export its curves, and print a short report.")
     parser.add_argument("--cache", type=Path, default=None,
                         help=f"folder for generated scenes and the demo run (default: $EDGEDOG_CACHE or "
@@ -38,8 +38,8 @@ def run(args: argparse.Namespace) -> None:
     folder = builtin_scene_path(args.cache, progress=not args.quiet)
     generated = time.perf_counter() - start
     out = args.out or (args.cache or default_cache()) / "runs" / "demo"
-    config = preset("fast")
-    write_run(RunFolder(out, folder, "fast", config))
+    config = preset("preview")
+    write_run(RunFolder(out, folder, "preview", config))
     scene = load_scene(folder, downscale=config.downscale)
     trainer = Trainer(scene, config, out, progress=not args.quiet)
     if trainer.done and (out / "log.json").is_file():

@@ -7,6 +7,7 @@ import argparse
 from pathlib import Path
 
 from edgedog.files import default_cache
+from edgedog.train.config import PRESETS
 
 
 def _size(text: str) -> tuple[int, int]:
@@ -26,8 +27,8 @@ def add_parser(subparsers) -> None:
                     "use `edgedog train`.")
     parser.add_argument("path", nargs="?", type=Path, metavar="SCENE | RUN",
                         help="scene folder, or run folder to resume (default: the built-in scene)")
-    parser.add_argument("--preset", choices=("paper", "fast"), default="fast",
-                        help="settings of new runs (default fast: 100 epochs at half resolution)")
+    parser.add_argument("--preset", choices=PRESETS, default="preview",
+                        help="settings of new runs (default preview: 100 epochs at half resolution)")
     parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                         help="override a setting of edgedog.train.config.TrainConfig for new runs "
                              "(repeatable; a resumed run keeps its own)")

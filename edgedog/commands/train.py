@@ -7,6 +7,7 @@ import json
 from pathlib import Path
 
 from edgedog.errors import InputError
+from edgedog.train.config import PRESETS
 
 
 def add_parser(subparsers) -> None:
@@ -18,8 +19,9 @@ def add_parser(subparsers) -> None:
                     "extract.json (with scores when the scene has ground truth).")
     parser.add_argument("scene", help="scene folder")
     parser.add_argument("--out", type=Path, required=True, help="run folder")
-    parser.add_argument("--preset", choices=("paper", "fast"), default="paper",
-                        help="paper: EdgeGaussians' 400 epochs at full resolution; fast: 100 at half")
+    parser.add_argument("--preset", choices=PRESETS, default="paper",
+                        help="paper: EdgeGaussians' 400 epochs at full resolution; fast: 200 at full; "
+                             "preview: 100 at half")
     parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                         help="override a setting of edgedog.train.config.TrainConfig (repeatable)")
     parser.add_argument("--layers", default=None, metavar="L0,L1,...",

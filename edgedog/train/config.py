@@ -200,15 +200,26 @@ def with_epochs(config: TrainConfig, epochs: int) -> TrainConfig:
     return dataclasses.replace(config, **{**_scale_epochs(config, epochs / config.epochs), "epochs": epochs})
 
 
+PRESETS = ("paper", "fast", "preview")
+"""The named starting configurations, slowest first (see `preset`)."""
+
+
 def preset(name: str) -> TrainConfig:
-    """'paper': EdgeGaussians' 400 epochs at full resolution. 'fast': the same schedule
-    compressed to 100 epochs at half resolution."""
+    """A named configuration.
+
+    'paper': EdgeGaussians' 400 epochs at full resolution. 'fast': the same schedule compressed
+    to 200 epochs, still at full resolution (half resolution costs small objects such as
+    ABC 00000006 5 to 8 F10 points; docs/BENCHMARKS.md). 'preview': compressed to 100 epochs at
+    half resolution, a quick look for the demo and the studio.
+    """
     paper = TrainConfig()
     if name == "paper":
         return paper
     if name == "fast":
+        return dataclasses.replace(paper, **_scale_epochs(paper, 0.5))
+    if name == "preview":
         return dataclasses.replace(paper, downscale=2, **_scale_epochs(paper, 0.25))
-    raise ConfigError(f"unknown preset {name!r}; choose paper or fast")
+    raise ConfigError(f"unknown preset {name!r}; choose {', '.join(PRESETS)}")
 
 
 def with_overrides(config: TrainConfig, assignments: list[str]) -> TrainConfig:
