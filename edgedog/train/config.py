@@ -208,17 +208,17 @@ def preset(name: str) -> TrainConfig:
     """A named configuration.
 
     'paper': EdgeGaussians' 400 epochs at full resolution. 'fast': the same schedule compressed
-    to 200 epochs, still at full resolution (half resolution costs small objects such as
-    ABC 00000006 5 to 8 F10 points; docs/BENCHMARKS.md). 'preview': compressed to 100 epochs at
-    half resolution, a quick look for the demo and the studio.
+    to 200 epochs, still at full resolution (at half resolution the 200 epochs cost ABC
+    00000006 4 F10 points; docs/BENCHMARKS.md). 'preview': compressed to 100 epochs at half
+    resolution, a quick look for the demo and the studio.
     """
     paper = TrainConfig()
     if name == "paper":
         return paper
     if name == "fast":
-        return dataclasses.replace(paper, **_scale_epochs(paper, 0.5))
+        return with_epochs(paper, 200)
     if name == "preview":
-        return dataclasses.replace(paper, downscale=2, **_scale_epochs(paper, 0.25))
+        return dataclasses.replace(with_epochs(paper, 100), downscale=2)
     raise ConfigError(f"unknown preset {name!r}; choose {', '.join(PRESETS)}")
 
 
