@@ -1,7 +1,8 @@
 """The built-in scenes, written by `edgedog.builtin` in the ABC-NEF layout.
 
 - The default scene (`builtin_scene_path`): a CAD part with a cylindrical boss, its edge maps
-  by the default detector, generated on first use in the cache.
+  by the weight-free default detector (Canny) whether or not PiDiNet weights are found, so that
+  `edgedog demo` gives everyone the same, documented result; generated on first use in the cache.
 - The exact box: an axis-aligned box with exact edge maps (its visible edges drawn), which
   tests and benchmarks use as a fixture with known answers. Unlike the catalogue's parts it is
   not normalised: it sits in [0.2, 0.8] x [0.3, 0.7] x [0.35, 0.65].
@@ -19,6 +20,7 @@ from edgedog.builtin.prism import Prism, rectangle
 from edgedog.builtin.render import Renderer
 from edgedog.builtin.shapes import Part, assemble, make_part
 from edgedog.builtin.writer import write_scene
+from edgedog.edges.registry import DEFAULT_WEIGHT_FREE
 from edgedog.errors import InputError
 from edgedog.files import default_cache
 from edgedog.scenes.camera import Camera
@@ -30,9 +32,11 @@ DEFAULT_SHAPE = "boss"
 DEFAULT_SEED = 0
 DEFAULT_VIEWS = 50
 DEFAULT_SIZE = 400
-"""ABC-NEF's 50 views at half its resolution, for a first run in about a minute: PiDiNet costs
-~1 CPU-second per 400-px view (4x that at 800 px), 104 CPU-s for the whole scene on two cores
-(117 s wall there while shared with other jobs); the weight-free default takes 2 s."""
+"""ABC-NEF's 50 views at half its resolution, for a first run in about a minute."""
+DEFAULT_DETECTOR = DEFAULT_WEIGHT_FREE
+"""Not "auto": PiDiNet maps of this scene train badly (docs/BENCHMARKS.md, the built-in part:
+F10 44 against 93 with Canny, measured), and the demo's result must not depend on whether
+weights happen to be configured."""
 
 BOX_MIN = np.array([0.2, 0.3, 0.35])
 BOX_MAX = np.array([0.8, 0.7, 0.65])
@@ -73,7 +77,7 @@ def write_box_scene(folder: Path, views: int = 50, size: int = 400) -> Path:
 
 
 def builtin_scene_path(cache: Path | None = None, progress: bool = False) -> Path:
-    """The default scene's folder, `<cache>/scenes/boss`, generated on first use.
+    """The default scene's folder, `<cache>/scenes/boss`, generated on first use (Canny maps).
 
     Generation goes through a temporary folder renamed when complete: a concurrent or
     interrupted run never leaves half a scene, and whichever run finishes first wins.
@@ -82,7 +86,7 @@ def builtin_scene_path(cache: Path | None = None, progress: bool = False) -> Pat
     if not (folder / "transforms_train.json").is_file():
         try:
             write_scene(folder, make_part(DEFAULT_SHAPE, DEFAULT_SEED), DEFAULT_VIEWS, DEFAULT_SIZE,
-                        seed=DEFAULT_SEED, progress=progress)
+                        seed=DEFAULT_SEED, detector=DEFAULT_DETECTOR, progress=progress)
         except (InputError, OSError):  # another process may have finished it meanwhile
             if not (folder / "transforms_train.json").is_file():
                 raise

@@ -101,7 +101,8 @@ def test_render_view_sees_the_faces_that_face_the_camera():
 
 
 def test_the_default_scene_is_generated_once_in_the_cache(tmp_path, monkeypatch):
-    monkeypatch.delenv("EDGEDOG_PIDINET", raising=False)
+    # Canny maps even where PiDiNet weights are configured (these would not even load).
+    monkeypatch.setenv("EDGEDOG_PIDINET", str(tmp_path / "no-weights-here"))
     monkeypatch.setattr(builtin_scene, "DEFAULT_VIEWS", 3)
     monkeypatch.setattr(builtin_scene, "DEFAULT_SIZE", 96)
     folder = builtin_scene.builtin_scene_path(tmp_path)
