@@ -77,12 +77,15 @@ def write_box_scene(folder: Path, views: int = 50, size: int = 400) -> Path:
 
 
 def builtin_scene_path(cache: Path | None = None, progress: bool = False) -> Path:
-    """The default scene's folder, `<cache>/scenes/boss`, generated on first use (Canny maps).
+    """The default scene's folder, `<cache>/scenes/boss-canny`, generated on first use.
+
+    The folder is named after the maps' detector: a scene cached by an older version with other
+    maps (PiDiNet ones, when weights were configured) is never taken for this one.
 
     Generation goes through a temporary folder renamed when complete: a concurrent or
     interrupted run never leaves half a scene, and whichever run finishes first wins.
     """
-    folder = (cache or default_cache()) / "scenes" / DEFAULT_SHAPE
+    folder = (cache or default_cache()) / "scenes" / f"{DEFAULT_SHAPE}-{DEFAULT_DETECTOR}"
     if not (folder / "transforms_train.json").is_file():
         try:
             write_scene(folder, make_part(DEFAULT_SHAPE, DEFAULT_SEED), DEFAULT_VIEWS, DEFAULT_SIZE,

@@ -105,9 +105,13 @@ def test_the_default_scene_is_generated_once_in_the_cache(tmp_path, monkeypatch)
     monkeypatch.setenv("EDGEDOG_PIDINET", str(tmp_path / "no-weights-here"))
     monkeypatch.setattr(builtin_scene, "DEFAULT_VIEWS", 3)
     monkeypatch.setattr(builtin_scene, "DEFAULT_SIZE", 96)
+    # An older version cached the scene as scenes/boss, with PiDiNet maps where weights were set.
+    stale = tmp_path / "scenes" / builtin_scene.DEFAULT_SHAPE
+    stale.mkdir(parents=True)
+    (stale / "transforms_train.json").write_text("{}")
     folder = builtin_scene.builtin_scene_path(tmp_path)
-    assert folder == tmp_path / "scenes" / builtin_scene.DEFAULT_SHAPE
-    assert [p.name for p in folder.parent.iterdir()] == [folder.name]  # no partial folder left
+    assert folder == tmp_path / "scenes" / "boss-canny"
+    assert sorted(p.name for p in folder.parent.iterdir()) == ["boss", "boss-canny"]  # no partial folder
     scene = load_scene(folder)
     assert len(scene) == 3 and scene.detectors == ["canny"] and scene.ground_truth is not None
     stamp = (folder / "transforms_train.json").stat().st_mtime_ns

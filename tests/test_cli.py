@@ -89,8 +89,8 @@ def test_help(args):
 def test_demo_trains_extracts_and_scores_the_builtin_part(tmp_path):
     result = edgedog("demo", "--cache", tmp_path, "--quiet")
     assert result.returncode == 0, result.stderr
-    assert (tmp_path / "scenes" / "boss" / "transforms_train.json").is_file()
-    run = tmp_path / "runs" / "demo"
+    assert (tmp_path / "scenes" / "boss-canny" / "transforms_train.json").is_file()
+    run = tmp_path / "runs" / "demo-boss-canny"
     for name in ("curves.obj", "curves.ply", "curves.json", "primitives.ply", "log.json"):
         assert (run / name).is_file(), name
     report = json.loads((run / "extract.json").read_text())
@@ -101,6 +101,14 @@ def test_demo_trains_extracts_and_scores_the_builtin_part(tmp_path):
     assert 5 <= report["counts"]["lines"] + report["counts"]["beziers"] <= 80
     again = edgedog("demo", "--cache", tmp_path, "--quiet")
     assert again.returncode == 0 and "reusing the finished demo run" in again.stdout
+    # A folder holding a run of another scene is refused, not resumed as if it were the demo.
+    other = tmp_path / "other-run"
+    other.mkdir()
+    saved = json.loads((run / "config.json").read_text())
+    (other / "config.json").write_text(json.dumps({**saved, "scene": str(tmp_path / "another-scene")}))
+    refused = edgedog("demo", "--cache", tmp_path, "--out", other, "--quiet")
+    assert refused.returncode != 0 and "holds a run of another scene" in refused.stderr
+    assert not (other / "checkpoint.pt").exists()
 
 
 def test_edges_computes_then_reuses_maps(builtin_scene_dir, tmp_path):

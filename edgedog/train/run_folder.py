@@ -41,7 +41,7 @@ def write_run(run: RunFolder) -> None:
 
 
 def check_same_run(run: RunFolder) -> None:
-    """A run folder already there (from an earlier bench) must hold this very run: same scene and
+    """A run folder already there (from an earlier bench or demo) must hold this very run: same scene and
     configuration; a benchmark never mixes two runs in one folder."""
     if (run.path / RUN_CONFIG).is_file():
         existing = read_run(run.path)
