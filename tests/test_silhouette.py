@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from tiny_runs import every_fifth_view, tiny_config
 
-from edgedog.edges.silhouette import Outline, measure_silhouette_profile, pull_to_outline
+from edgedog.edges.silhouette import Outline, OutlinePull, measure_silhouette_profile
 from edgedog.errors import InputError
 from edgedog.train.targets import corrects_silhouettes, prepare_maps, scene_outlines
 from edgedog.train.trainer import Trainer
@@ -57,14 +57,14 @@ def test_measured_offset_is_where_the_band_is_drawn_and_the_pull_removes_it(draw
     band = ring_map(drawn_at)
     measured = measure_silhouette_profile([band], [outline])
     assert measured.offset_px == pytest.approx(drawn_at, abs=0.1)
-    pulled = pull_to_outline(band, outline, measured.offset_px, reach_px=3.0)
+    pulled = OutlinePull.towards(outline, measured.offset_px, reach_px=3.0).apply(band)
     assert abs(measure_silhouette_profile([pulled], [outline]).offset_px) < 0.12
 
 
 def test_pull_leaves_edges_deep_inside_alone():
     outline = Outline.from_coverage(disc_coverage())
     inner = ring_map(-12.0)  # an edge 12 px inside the outline: beyond twice the reach
-    pulled = pull_to_outline(inner, outline, 1.2, reach_px=3.0)
+    pulled = OutlinePull.towards(outline, 1.2, reach_px=3.0).apply(inner)
     np.testing.assert_allclose(pulled, inner, atol=1e-5)
 
 

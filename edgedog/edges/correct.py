@@ -25,7 +25,7 @@ def shift_edge_map(edge_map: np.ndarray, dx: float, dy: float, nearest: bool = F
         edge_map: (H, W) float map, or a bool mask with `nearest`.
         dx, dy: the shift in px (content moves right and down for positive values).
         nearest: sample the nearest pixel instead: for masks of edge pixels, whose thin lines
-            would fall below the edge threshold if interpolated (as in `pull_to_outline`).
+            would fall below the edge threshold if interpolated (as in `OutlinePull.apply`).
     Returns:
         (H, W) float32 map with out(x, y) = edge_map(x - dx, y - dy) (bool with `nearest` on a
         bool mask).

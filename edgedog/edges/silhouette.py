@@ -108,31 +108,36 @@ def measure_silhouette_profile(edge_maps: Sequence[np.ndarray], outlines: Sequen
     return SilhouetteProfile(centres, values, peak, int(counts.sum()))
 
 
-def pull_to_outline(edge_map: np.ndarray, outline: Outline, offset_px: float, reach_px: float,
-                    nearest: bool = False) -> np.ndarray:
-    """Move the map's content inwards by `offset_px` along the outline's normal near the outline.
+@dataclass(frozen=True)
+class OutlinePull:
+    """Moves a view's maps inwards by `offset_px` along the outline's normal near the outline.
 
     out(x) = map(x + offset * n(x) * w(x)), with w = 1 within `reach_px` of the outline, fading
     linearly to 0 at twice that: a band drawn at distance `offset` comes to lie on the outline,
-    while edges deep inside the object do not move.
+    while edges deep inside the object do not move. The sampling field is built once per view
+    and applied to both the view's map and its mask of edge pixels.
 
-    Args:
-        edge_map: (H, W) float map, or a bool mask with `nearest`.
-        outline: the view's outline at the map's resolution.
-        offset_px: the measured silhouette offset (> 0: bands drawn outside).
-        reach_px: how far from the outline the full correction applies.
-        nearest: sample the nearest pixel instead of interpolating linearly: for masks of edge
-            pixels, whose thin lines would otherwise fall below the edge threshold (a 1 px line
-            moved by 0.3 px loses a third of its peak).
-    Returns:
-        (H, W) float32 corrected map (bool with `nearest` on a bool mask).
+    map_x, map_y: (H, W) float32 coordinates where each output pixel samples its input.
     """
-    height, width = edge_map.shape
-    weight = np.clip(2.0 - np.abs(outline.distance) / reach_px, 0.0, 1.0) * offset_px
-    xs, ys = np.meshgrid(np.arange(width, dtype=np.float32), np.arange(height, dtype=np.float32))
-    map_x = xs + outline.normal[..., 0] * weight
-    map_y = ys + outline.normal[..., 1] * weight
-    pulled = cv2.remap(np.asarray(edge_map, np.float32), map_x.astype(np.float32), map_y.astype(np.float32),
-                       interpolation=cv2.INTER_NEAREST if nearest else cv2.INTER_LINEAR,
-                       borderMode=cv2.BORDER_CONSTANT, borderValue=0.0)
-    return pulled > 0.5 if edge_map.dtype == bool else pulled
+
+    map_x: np.ndarray
+    map_y: np.ndarray
+
+    @classmethod
+    def towards(cls, outline: Outline, offset_px: float, reach_px: float) -> OutlinePull:
+        """The pull onto `outline` (at the map's resolution) of bands drawn `offset_px` outside
+        it (< 0: inside), applied in full within `reach_px` of it."""
+        height, width = outline.distance.shape
+        weight = np.clip(2.0 - np.abs(outline.distance) / reach_px, 0.0, 1.0) * offset_px
+        xs, ys = np.meshgrid(np.arange(width, dtype=np.float32), np.arange(height, dtype=np.float32))
+        return cls((xs + outline.normal[..., 0] * weight).astype(np.float32),
+                   (ys + outline.normal[..., 1] * weight).astype(np.float32))
+
+    def apply(self, edge_map: np.ndarray, nearest: bool = False) -> np.ndarray:
+        """The (H, W) float32 pulled map, or a bool mask with `nearest`, which samples the nearest
+        pixel instead of interpolating: masks of edge pixels hold thin lines that would otherwise
+        fall below the edge threshold (a 1 px line moved by 0.3 px loses a third of its peak)."""
+        pulled = cv2.remap(np.asarray(edge_map, np.float32), self.map_x, self.map_y,
+                           interpolation=cv2.INTER_NEAREST if nearest else cv2.INTER_LINEAR,
+                           borderMode=cv2.BORDER_CONSTANT, borderValue=0.0)
+        return pulled > 0.5 if edge_map.dtype == bool else pulled

@@ -9,7 +9,7 @@ import torch
 from edgedog.edges.calibrate import load_calibration
 from edgedog.edges.correct import shift_edge_map, warp_target
 from edgedog.edges.registry import make_detector
-from edgedog.edges.silhouette import Outline, measure_silhouette_profile, pull_to_outline
+from edgedog.edges.silhouette import Outline, OutlinePull, measure_silhouette_profile
 from edgedog.edges.thin import thin_edge_map
 from edgedog.errors import ConfigError, InputError
 from edgedog.scenes import Scene
@@ -95,8 +95,8 @@ def correct_silhouettes(maps: list[np.ndarray], masks: list[np.ndarray], outline
     measured = measure_silhouette_profile([maps[i] for i in present], known)
     corrected, moved = list(maps), list(masks)
     for i in present:
-        corrected[i] = pull_to_outline(maps[i], outlines[i], measured.offset_px, reach_px)
-        moved[i] = pull_to_outline(masks[i], outlines[i], measured.offset_px, reach_px, nearest=True)
+        pull = OutlinePull.towards(outlines[i], measured.offset_px, reach_px)
+        corrected[i], moved[i] = pull.apply(maps[i]), pull.apply(masks[i], nearest=True)
     residual = measure_silhouette_profile([corrected[i] for i in present], known)
     return corrected, moved, {"offset_px": round(measured.offset_px, 3), "pixels": measured.pixels,
                               "residual_px": round(residual.offset_px, 3)}
