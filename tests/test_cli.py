@@ -136,12 +136,13 @@ def test_init_reports_the_method_and_writes_points(builtin_scene_dir, tmp_path):
     from plyfile import PlyData
 
     out = tmp_path / "init.ply"
-    result = edgedog("init", builtin_scene_dir, "--method", "uniform", "--out", out)
+    result = edgedog("init", builtin_scene_dir, "--method", "uniform", "--uniform-count", "1234",
+                     "--out", out)
     assert result.returncode == 0, result.stderr
     report = json.loads(result.stdout[: result.stdout.rindex("}") + 1])
-    assert report["method"] == "uniform" and report["points"] == 2500 and report["reason"] == "requested"
+    assert report["method"] == "uniform" and report["points"] == 1234 and report["reason"] == "requested"
     vertex = PlyData.read(str(out))["vertex"]
-    assert len(vertex) == 2500 and (vertex["scale"] > 0).all()
+    assert len(vertex) == 1234 and (vertex["scale"] > 0).all()
 
 
 def test_train_writes_a_run_and_refuses_to_overwrite_it(builtin_scene_dir, tmp_path):

@@ -102,7 +102,18 @@ def test_depth_uncertainty_and_weighting():
     assert torch.equal(losses.uncertainty_weight(up, "one"), torch.ones_like(up))
     assert torch.allclose(losses.uncertainty_weight(up, "exp"), torch.exp(up))
     assert torch.allclose(losses.uncertainty_weight(up, "one_minus"), 1 - up)
+    assert torch.allclose(losses.uncertainty_weight(up, "exp_neg"), torch.exp(-up))
     assert losses.depth_uncertainty(torch.ones(5, 5)).max() == 0  # flat depth: no uncertainty
+
+
+def test_depth_uncertainty_matches_a_replicate_padded_sobel_convolution():
+    depth = torch.rand(37, 53, generator=torch.Generator().manual_seed(0)) * 3
+    sobel_x = torch.tensor([[-1.0, 0.0, 1.0], [-2.0, 0.0, 2.0], [-1.0, 0.0, 1.0]])
+    padded = torch.nn.functional.pad(depth[None, None], (1, 1, 1, 1), mode="replicate")
+    grad = torch.nn.functional.conv2d(padded, torch.stack([sobel_x, sobel_x.T])[:, None])[0]
+    magnitude = grad.pow(2).sum(0).sqrt()
+    expected = (magnitude - magnitude.min()) / (magnitude.max() - magnitude.min())
+    assert torch.allclose(losses.depth_uncertainty(depth), expected, atol=1e-6)
 
 
 def test_non_finite_gradients_never_reach_the_parameters(box, tmp_path):

@@ -40,7 +40,8 @@ class AblationRow:
 
 def component_rows() -> list[AblationRow]:
     """Table 3: the baseline, each of the DoG kernel and the two uncertainties alone, each pair,
-    and the full model."""
+    and the full model. Pixel U weights by the base config's w(Up) (the paper's was exp(Up):
+    `--set weighting=exp`)."""
     combos = [(0, 0, 0), (1, 0, 0), (0, 1, 0), (0, 0, 1), (1, 1, 0), (1, 0, 1), (0, 1, 1), (1, 1, 1)]
     rows = []
     for dog, pixel, primitive in combos:

@@ -15,6 +15,7 @@ from edgedog.files import atomic_write
 
 def add_parser(subparsers) -> None:
     from edgedog.init import INIT_METHODS
+    from edgedog.train.config import TrainConfig
 
     parser = subparsers.add_parser(
         "init", help="initial points: SfM triangulation with the known poses, or a uniform cube",
@@ -26,6 +27,9 @@ def add_parser(subparsers) -> None:
     parser.add_argument("--detector", default=None,
                         help="keep only points that project onto this detector's edge maps in 2+ views")
     parser.add_argument("--min-points", type=int, default=500, help="fewest points 'auto' accepts")
+    parser.add_argument("--uniform-count", type=int, default=TrainConfig.init_count,
+                        help=f"points of the uniform cube (default {TrainConfig.init_count}, as "
+                             "`edgedog train`; EdgeGaussians uses 2500)")
     parser.add_argument("--uniform-side", type=float, default=None,
                         help="edge of the uniform cube (default: the scene bounds' largest extent; "
                              "EdgeGaussians uses 1.1 for ABC objects)")
@@ -39,7 +43,7 @@ def run(args: argparse.Namespace) -> None:
 
     scene = open_scene(args.scene, args)
     points = initialize(scene, args.method, detector=args.detector, min_points=args.min_points,
-                        uniform_side=args.uniform_side)
+                        uniform_count=args.uniform_count, uniform_side=args.uniform_side)
     print(json.dumps({"method": points.method, "points": len(points), **points.report}, indent=2,
                      default=str))
     if args.out is not None:

@@ -25,8 +25,9 @@ class TrainConfig:
     """Train at 1/downscale resolution."""
     init_method: str = "auto"
     """'auto' | 'triangulate' | 'sfm-points' | 'uniform' (see edgedog.init)."""
-    init_count: int = 2500
-    """Points of the uniform initialisation."""
+    init_count: int = 10000
+    """Points of the uniform initialisation (EdgeGaussians start from 2500; with w = exp(-Up) the
+    rims that are also depth jumps need the denser start: docs/BENCHMARKS.md)."""
     init_side: float | None = 1.1
     """Edge of the uniform cube (EdgeGaussians: 1.1 around the object for ABC); None: the bounds."""
     init_opacity: float = 0.08
@@ -105,8 +106,11 @@ class TrainConfig:
     # --- EdgeDoG's uncertainties
     pixel_uncertainty: bool = True
     """Weight the L1 per pixel by w(Up), Up = normalised Sobel magnitude of the rendered depth."""
-    weighting: Weighting = "exp"
-    """w(Up): 'one' 1, 'exp_neg' exp(-Up), 'one_minus' 1 - Up, 'up' Up, 'exp' exp(Up)."""
+    weighting: Weighting = "exp_neg"
+    """w(Up): 'one' 1, 'exp_neg' exp(-Up), 'one_minus' 1 - Up, 'up' Up, 'exp' exp(Up). The paper
+    chose exp(Up); measured here, exp(Up) fits the occluding contours of curved surfaces (where the
+    rendered depth jumps) and exp(-Up) scores higher (docs/BENCHMARKS.md, "the weighting of the
+    pixel uncertainty")."""
     primitive_uncertainty: bool = True
     """Every `fisher_every` epochs keep the `keep_ratio` best primitives by Fisher information."""
     fisher_every: int = 50

@@ -10,20 +10,22 @@ from scipy.spatial import cKDTree
 
 from edgedog.train.model import EdgeModel
 
-_SOBEL_X = torch.tensor([[-1.0, 0.0, 1.0], [-2.0, 0.0, 2.0], [-1.0, 0.0, 1.0]])
-_SOBEL = torch.stack([_SOBEL_X, _SOBEL_X.T])[:, None]  # (2, 1, 3, 3)
-
 
 def depth_uncertainty(depth: torch.Tensor) -> torch.Tensor:
     """Up: the Sobel gradient magnitude of the rendered depth (H, W), min-max normalised to [0, 1]
-    per view and detached (the paper's pixel-level uncertainty: depth discontinuities)."""
+    per view (all zeros for a flat depth) and detached (the paper's pixel-level uncertainty:
+    depth discontinuities)."""
+    # The 3x3 Sobel as its two separable passes on slices: twice as fast as a conv2d, and this
+    # runs at every step. (OpenCV's Sobel is faster still, but its results vary in the last bit
+    # from call to call, which would break exact resumes.)
     with torch.no_grad():
-        # Replicate the border: zero padding would make the image frame a depth discontinuity.
-        padded = F.pad(depth[None, None], (1, 1, 1, 1), mode="replicate")
-        grad = F.conv2d(padded, _SOBEL.to(depth.dtype))[0]
-        magnitude = grad.pow(2).sum(0).sqrt()
-        lo, hi = magnitude.min(), magnitude.max()
-        return (magnitude - lo) / (hi - lo) if hi > lo else torch.zeros_like(magnitude)
+        # Replicated borders: zero padding would make the image frame a depth discontinuity.
+        padded = F.pad(depth[None, None], (1, 1, 1, 1), mode="replicate")[0, 0]
+        vertical = (padded[:-2] + padded[2:]).add_(padded[1:-1], alpha=2)  # (H, W + 2)
+        horizontal = (padded[:, :-2] + padded[:, 2:]).add_(padded[:, 1:-1], alpha=2)  # (H + 2, W)
+        magnitude = torch.hypot(vertical[:, 2:] - vertical[:, :-2], horizontal[2:] - horizontal[:-2])
+        lo, hi = torch.aminmax(magnitude)
+        return magnitude.sub_(lo).div_(hi - lo) if hi > lo else torch.zeros_like(magnitude)
 
 
 def uncertainty_weight(up: torch.Tensor, weighting: str) -> torch.Tensor:
