@@ -71,9 +71,9 @@ def test_correction_rows_get_their_own_runs_and_a_skipped_row_says_why():
     base = preset("preview")
     names = [run_name(effective_config(dataclasses.replace(base, **row.changes)))
              for row in correction_rows()]
-    assert len(set(names)) == len(names) == 7 and names[0] == "dog_pix-exp_fisher"  # no correction at all
-    assert {"dog_pix-exp_fisher_learned", "dog_pix-exp_fisher_outline",
-            "dog_pix-exp_fisher_profile_outline"} <= set(names)
+    assert len(set(names)) == len(names) == 7 and names[0] == "dog_pix-exp_neg_fisher"  # no correction at all
+    assert {"dog_pix-exp_neg_fisher_learned", "dog_pix-exp_neg_fisher_outline",
+            "dog_pix-exp_neg_fisher_profile_outline"} <= set(names)
     table = markdown([{"table": CORRECTIONS, "label": "shift by the detector's calibration", "run": names[1],
                        "skipped": "no calibration of detector 'x'"}])
     assert "| shift by the detector's calibration | skipped: no calibration of detector 'x' |" in table
