@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import json
 
 import numpy as np
 import pytest
@@ -11,7 +12,7 @@ import torch
 from edgedog.errors import ConfigError
 from edgedog.scenes import load_scene
 from edgedog.train import losses
-from edgedog.train.config import TrainConfig, preset, with_epochs, with_overrides
+from edgedog.train.config import TrainConfig, for_detector, preset, with_epochs, with_overrides
 from edgedog.train.model import GROUPS
 from edgedog.train.trainer import Trainer, _finite_grads
 
@@ -69,6 +70,8 @@ def test_density_control_events_and_outputs(box, tmp_path):
         assert torch.isfinite(tensor).all()
     for output in ("primitives.ply", "points.ply", "log.json", "checkpoint.pt"):
         assert (tmp_path / "run" / output).is_file()
+    logged = json.loads((tmp_path / "run" / "log.json").read_text())["config"]  # resolved for the maps
+    assert (logged["direction_factor"], logged["ratio_factor"], logged["edge_profile"]) == (0.1, 0.05, "raw")
     snap = trainer.latest_snapshot
     assert snap.means.shape == (len(trainer.model), 3) and snap.step == trainer.step_index
 
@@ -139,6 +142,17 @@ def test_config_overrides():
     assert fast.epochs == 200 and fast.downscale == 1 and fast.fisher_every == 25
     with pytest.raises(ConfigError, match="choose paper, fast, preview"):
         preset("turbo")
+
+
+def test_settings_left_open_follow_the_detector():
+    dexined = for_detector(TrainConfig(), "DexiNed")
+    assert (dexined.direction_factor, dexined.ratio_factor, dexined.edge_profile) == (0.01, 0.01, "profile")
+    pidinet = for_detector(TrainConfig(), "pidinet")
+    assert (pidinet.direction_factor, pidinet.ratio_factor, pidinet.edge_profile) == (0.1, 0.05, "raw")
+    chosen = with_overrides(TrainConfig(), ["direction_factor=0.2", "edge_profile=thin"])
+    chosen = for_detector(chosen, "dexined")
+    assert (chosen.direction_factor, chosen.ratio_factor, chosen.edge_profile) == (0.2, 0.01, "thin")
+    assert for_detector(dexined, "pidinet") == dexined  # a resolved config stays as it is
 
 
 

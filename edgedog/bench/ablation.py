@@ -66,13 +66,13 @@ def weighting_rows() -> list[AblationRow]:
 
 def correction_rows() -> list[AblationRow]:
     """The full model on the raw maps and with each correction of the maps' bias."""
-    plain = {"silhouette_correction": "none"}  # one correction at a time
+    plain = {"silhouette_correction": "none", "edge_profile": "raw"}  # one correction at a time
     rows = [("raw", "raw maps", plain),
             ("calibrated", "shift by the detector's calibration", {**plain, "map_correction": "calibrated"}),
             ("learned", "shift learned with the primitives", {**plain, "map_correction": "learned"}),
             ("thin", "thinned (NMS + narrow profile)", {**plain, "edge_profile": "thin"}),
             ("profile", "profile loss (render blurred to the band)", {**plain, "edge_profile": "profile"}),
-            ("outline", "outline pulled onto the masks", {"silhouette_correction": "measured"}),
+            ("outline", "outline pulled onto the masks", {**plain, "silhouette_correction": "measured"}),
             ("outline+profile", "outline pulled onto the masks + profile loss",
              {"silhouette_correction": "measured", "edge_profile": "profile"})]
     return [AblationRow(CORRECTIONS, key, label, {"kernel": "dog", "pixel_uncertainty": True,
@@ -111,7 +111,7 @@ def run_name(config: TrainConfig) -> str:
     parts = [config.kernel, f"pix-{config.weighting}" if config.pixel_uncertainty else "nopix",
              "fisher" if config.primitive_uncertainty else "nofisher"]
     parts += [config.map_correction] if config.map_correction != "none" else []
-    parts += [config.edge_profile] if config.edge_profile != "raw" else []
+    parts += [config.edge_profile] if config.edge_profile not in ("auto", "raw") else []
     parts += {"none": [], "measured": ["outline"], "auto": ["outline-auto"]}[config.silhouette_correction]
     return "_".join(parts)
 

@@ -75,8 +75,9 @@ class TrainConfig:
     silhouette_reach: float = 3.0
     """'measured': px from the outline within which the full correction applies (fading to 0 at
     twice this)."""
-    edge_profile: Literal["raw", "thin", "profile"] = "raw"
-    """'raw': fit the maps as they are; 'thin': fit their ridge drawn with a narrow Gaussian
+    edge_profile: Literal["auto", "raw", "thin", "profile"] = "auto"
+    """'auto': 'profile' for DexiNed maps, 'raw' for others (see `for_detector`); 'raw': fit the
+    maps as they are; 'thin': fit their ridge drawn with a narrow Gaussian
     profile (edgedog.edges.thin), which removes the bias of thick, asymmetric detector bands;
     'profile': fit the render blurred by `profile_sigma` (the band's measured width) to the maps,
     so that thin primitives explain a thick band."""
@@ -97,11 +98,13 @@ class TrainConfig:
     orientation_every: int = 5
     """The direction and scale-ratio losses are applied every this many steps."""
     direction_neighbours: int = 5
-    direction_factor: float = 0.1
+    direction_factor: float | None = None
     """Direction loss weight: the term is scaled to this fraction of the running sum of the epoch's
-    projection losses, as EdgeGaussians does (0.01 for DexiNed maps)."""
-    ratio_factor: float = 0.05
-    """Scale-ratio loss weight, scaled like `direction_factor` (0.01 for DexiNed maps)."""
+    projection losses, as EdgeGaussians does; None: theirs for the maps' detector (0.01 for
+    DexiNed maps, 0.1 for others: `for_detector`)."""
+    ratio_factor: float | None = None
+    """Scale-ratio loss weight, scaled like `direction_factor`; None: 0.01 for DexiNed maps, 0.05
+    for others."""
 
     # --- EdgeDoG's uncertainties
     pixel_uncertainty: bool = True
@@ -161,8 +164,8 @@ class TrainConfig:
             raise ConfigError(f"weighting must be one, exp_neg, one_minus, up or exp, got {self.weighting!r}")
         if self.kernel not in ("dog", "gaussian"):
             raise ConfigError(f"kernel must be dog or gaussian, got {self.kernel!r}")
-        if self.edge_profile not in ("raw", "thin", "profile"):
-            raise ConfigError(f"edge_profile must be raw, thin or profile, got {self.edge_profile!r}")
+        if self.edge_profile not in ("auto", "raw", "thin", "profile"):
+            raise ConfigError(f"edge_profile must be auto, raw, thin or profile, got {self.edge_profile!r}")
         if self.map_correction not in ("none", "calibrated", "shift", "learned"):
             raise ConfigError(f"map_correction must be none, calibrated, shift or learned, "
                               f"got {self.map_correction!r}")
@@ -177,6 +180,25 @@ class TrainConfig:
             raise ConfigError("layer and lower_lr_scale must not be negative")
         if self.epochs < 1 or self.downscale < 1:
             raise ConfigError("epochs and downscale must be positive")
+
+
+DETECTOR_SETTINGS = {
+    "dexined": {"direction_factor": 0.01, "ratio_factor": 0.01, "edge_profile": "profile"},
+}
+"""The settings a detector's maps need where they differ from `OTHER_MAPS`. DexiNed: EdgeGaussians'
+factors for its maps, and the profile loss, which fits its thick bands with thin primitives (on ABC
+00004926, paper preset: Comp 9.6 -> 5.1 mm, F10 94.9 -> 97.7; docs/BENCHMARKS.md)."""
+OTHER_MAPS = {"direction_factor": 0.1, "ratio_factor": 0.05, "edge_profile": "raw"}
+"""EdgeGaussians' settings for PiDiNet maps, used for every detector not in DETECTOR_SETTINGS."""
+
+
+def for_detector(config: TrainConfig, detector: str) -> TrainConfig:
+    """The config with its detector-dependent settings left open (None, or 'auto') set for the
+    maps of `detector` (a name as the scene or registry gives it, any case)."""
+    tuned = DETECTOR_SETTINGS.get(detector.lower(), OTHER_MAPS)
+    open_keys = [key for key, value in OTHER_MAPS.items()
+                 if getattr(config, key) is None or getattr(config, key) == "auto"]
+    return dataclasses.replace(config, **{key: tuned[key] for key in open_keys})
 
 
 def _scale_epochs(config: TrainConfig, factor: float) -> dict:
@@ -267,4 +289,4 @@ def from_dict(values: dict) -> TrainConfig:
                           for k, v in values.items() if k in fields})
 
 
-__all__ = ["TrainConfig", "from_dict", "preset", "to_dict", "with_epochs", "with_overrides"]
+__all__ = ["TrainConfig", "for_detector", "from_dict", "preset", "to_dict", "with_epochs", "with_overrides"]

@@ -28,7 +28,7 @@ from edgedog.renderer.primitives import RasterCamera
 from edgedog.renderer.rasterize import rasterize
 from edgedog.scenes import Scene
 from edgedog.train import losses
-from edgedog.train.config import TrainConfig, from_dict, to_dict
+from edgedog.train.config import TrainConfig, for_detector, from_dict, to_dict
 from edgedog.train.layers import LowerLayers, keep_on_residual, lower_layer_config, residual_maps
 from edgedog.train.model import EdgeModel
 from edgedog.train.optim import Optimizers
@@ -130,9 +130,11 @@ class Trainer:
 
     def __init__(self, scene: Scene, config: TrainConfig, out: Path, progress: bool = True,
                  lower: LowerLayers | None = None):
-        self.scene, self.config, self.out, self.progress = scene, config, Path(out), progress
+        self.scene, self.out, self.progress = scene, Path(out), progress
         self.raster = RasterConfig(kernel=config.kernel, k_activation=config.k_activation)
-        self.detector = self._edge_maps()
+        self.detector = self._edge_maps(config.detector)
+        # The settings left to the maps' detector are fixed now: checkpoints and log.json hold them.
+        self.config = config = for_detector(config, self.detector)
         self.cameras = [RasterCamera.from_camera(scene.camera(i)) for i in range(len(scene))]
         self.map_shift = fixed_shift(config, scene, self.detector, self.own_maps)
         outlines, unreadable = scene_outlines(scene) if corrects_silhouettes(config, scene) else (None, [])
@@ -162,10 +164,9 @@ class Trainer:
             self._initialise()
 
     # --- set-up
-    def _edge_maps(self) -> str:
-        """The name of the maps to fit (computed now when needed); sets `own_maps`: whether they
-        are the scene's own maps rather than computed by edgedog."""
-        wanted = self.config.detector
+    def _edge_maps(self, wanted: str) -> str:
+        """The name of the maps to fit, `wanted` or the scene's first for 'auto' (computed now when
+        needed); sets `own_maps`: whether they are the scene's own maps rather than edgedog's."""
         if wanted == "auto" and self.scene.detectors:
             wanted = self.scene.detectors[0]
         self.own_maps = wanted in self.scene.detectors
