@@ -13,7 +13,7 @@ from edgedog.errors import ConfigError
 from edgedog.scenes import load_scene
 from edgedog.train import losses
 from edgedog.train.config import TrainConfig, for_detector, preset, with_epochs, with_overrides
-from edgedog.train.model import GROUPS
+from edgedog.train.model import GROUPS, EdgeModel
 from edgedog.train.trainer import Trainer, _finite_grads
 
 
@@ -95,6 +95,28 @@ def test_controls_apply_at_the_next_step(box, tmp_path):
     assert prune["keep_ratio"] == 0.5 and prune["after"] == round(0.5 * prune["before"])
     # Snapshots are copies: training moved the model, not the snapshot.
     assert not np.array_equal(snapshot.means[:10], trainer.model.means.detach().numpy()[:10])
+
+
+def test_direction_loss_gradient_repeats_exactly_with_two_threads():
+    """Primitives are each other's neighbours many times over; the gradient's sums over them
+    must not depend on thread timing, or seeded runs on two cores diverge."""
+    g = torch.Generator().manual_seed(0)
+    n = 20000
+    model = EdgeModel(torch.rand(n, 3, generator=g), torch.randn(n, 3, generator=g) - 5,
+                      torch.randn(n, 4, generator=g), torch.zeros(n), torch.zeros(n, 2)).requires_grad_()
+    neighbours = losses.nearest_neighbours(model, 5)
+    threads = torch.get_num_threads()
+    torch.set_num_threads(2)
+    try:
+        gradients = []
+        for _ in range(12):
+            model.means.grad = None
+            losses.direction_loss(model, neighbours).backward()
+            gradients.append(model.means.grad.clone())
+    finally:
+        torch.set_num_threads(threads)
+    for gradient in gradients[1:]:
+        assert torch.equal(gradient, gradients[0])
 
 
 def test_depth_uncertainty_and_weighting():

@@ -70,7 +70,10 @@ def nearest_neighbours(model: EdgeModel, k: int) -> torch.Tensor:
 
 def direction_loss(model: EdgeModel, neighbours: torch.Tensor) -> torch.Tensor:
     """1 - mean over primitives and neighbours of |major axis . unit direction to the neighbour|."""
-    offsets = model.means[neighbours] - model.means[:, None, :]
+    # index_select, not means[neighbours]: the backward of advanced indexing sums the repeated
+    # rows in a thread-dependent order on the CPU (runs with 2 threads diverged); index_add does not.
+    around = model.means.index_select(0, neighbours.reshape(-1)).reshape(*neighbours.shape, 3)
+    offsets = around - model.means[:, None, :]
     directions = offsets / offsets.norm(dim=-1, keepdim=True).clamp_min(1e-12)
     alignment = (model.major_axes()[:, None, :] * directions).sum(-1).abs()
     return 1 - alignment.mean()
