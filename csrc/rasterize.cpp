@@ -49,30 +49,6 @@ Footprint footprint(const Splats& s, int32_t i, const Tile& tile) {
   return fp;
 }
 
-// The columns of row py that the footprint's support ellipse can reach: edge primitives are
-// thin and slanted, so most of their bounding box misses them. The hit test below stays the
-// judge of every pixel; the span only has to contain all pixels it could accept, so it is
-// solved in double from a support widened past the float hit test's rounding (whose error is
-// at most ~1e-6 of q_cut times A C / det, the conic's elongation) and padded by a pixel.
-inline void row_span(const Footprint& fp, int py, int& x0, int& x1) {
-  const double A = fp.A, B = fp.B, C = fp.C, dy = double(py) - double(fp.my);
-  const double det = A * C - B * B;
-  const double q_cut = double(fp.u_cut) / double(fp.inv_2a);
-  const double widened = q_cut * (1.0 + 1e-5 * (A * C / det)) + 1e-6;
-  const double reach = A * widened - det * dy * dy;  // A * (x-span half width * A)^2 / A
-  x0 = fp.x0;
-  x1 = fp.x1;
-  if (!(A > 0 && det > 0 && std::isfinite(reach))) return;  // degenerate: test the whole range
-  if (reach < 0) {
-    x1 = x0 - 1;
-    return;
-  }
-  const double centre = double(fp.mx) - B * dy / A, half = std::sqrt(reach) / A + 1.0;
-  const double lo = centre - half, hi = centre + half;
-  if (lo > x0) x0 = lo > x1 ? x1 + 1 : int(std::ceil(lo));
-  if (hi < x1) x1 = hi < x0 ? x0 - 1 : int(std::floor(hi));
-}
-
 // Alpha of a footprint at pixel (px, py), or false when the primitive is skipped there. The
 // forward and backward passes call this same function, so they skip the same pixels.
 struct PixelHit {
@@ -156,9 +132,7 @@ void rasterize_forward(const Splats& s, const Frame& f, const TileView& tiles, c
         const Footprint fp = footprint(s, i, tile);
         const float* c = s.colors + int64_t(i) * C;
         for (int py = fp.y0; py <= fp.y1; ++py) {
-          int x0, x1;
-          row_span(fp, py, x0, x1);
-          for (int px = x0; px <= x1; ++px) {
+          for (int px = fp.x0; px <= fp.x1; ++px) {
             const int p = (py - tile.y0) * kTileSize + (px - tile.x0);
             PixelHit h;
             if (done[p] || !hit_pixel(fp, px, py, h)) continue;
@@ -227,9 +201,7 @@ void walk_tile_backwards(const Splats& s, const Frame& f, const TileView& tiles,
     const Footprint fp = footprint(s, i, tile);
     const float* c = s.colors + int64_t(i) * C;
     for (int py = fp.y0; py <= fp.y1; ++py) {
-      int x0, x1;
-      row_span(fp, py, x0, x1);
-      for (int px = x0; px <= x1; ++px) {
+      for (int px = fp.x0; px <= fp.x1; ++px) {
         const int p = (py - tile.y0) * kTileSize + (px - tile.x0);
         PixelHit h;
         if (pos >= used[p] || !hit_pixel(fp, px, py, h)) continue;

@@ -238,9 +238,9 @@ def test_huge_scales(scales):
 
 
 def test_slanted_needles_across_tiles_match_reference():
-    """Needles 400:1 at every angle in the image plane, each crossing several tiles: the kernels
-    visit only each row's span of the support ellipse, which must hold every pixel the hit test
-    accepts (a missed pixel costs at least 1/255 of alpha, 40x the tolerance)."""
+    """Needles 400:1 at every angle in the image plane, each crossing several tiles, whose
+    bounding boxes are mostly empty: every pixel of each streak is composited as the reference
+    does (a missed pixel costs at least 1/255 of alpha, 40x the tolerance)."""
     cam = axis_camera(width=160, height=112, focal=300.0)
     n = 24
     angles = torch.linspace(0, math.pi, n + 1, dtype=F64)[:-1]  # rotations about the view axis
