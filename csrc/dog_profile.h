@@ -24,30 +24,34 @@ inline void phi_psi(float x, float& phi, float& psi) {
   }
 }
 
-inline float dog_value(float u, float t) {
+// The exponentials (and, near t = 1, the series) that D and its derivatives share: the forward
+// and backward passes compute them once per (primitive, pixel).
+struct DogTerms {
+  float e_u, e_tu;  // exp(-u), exp(-t u)
+  float phi, psi;   // phi(s u), psi(s u); set only when s < kNearLogT
+};
+
+// D(u; t), keeping in `k` what `dog_derivatives` needs.
+inline float dog_value(float u, float t, DogTerms& k) {
   const float s = 1.f - t;
-  if (s >= kNearLogT) return (std::exp(-u) - t * std::exp(-t * u)) / s;
-  float phi, psi;
-  phi_psi(s * u, phi, psi);
-  return std::exp(-t * u) - u * std::exp(-u) * phi;
+  k.e_u = std::exp(-u);
+  k.e_tu = std::exp(-t * u);
+  if (s >= kNearLogT) return (k.e_u - t * k.e_tu) / s;
+  phi_psi(s * u, k.phi, k.psi);
+  return k.e_tu - u * k.e_u * k.phi;
 }
 
-// D, dD/du and dD/dt together.
-inline float dog_value_grad(float u, float t, float& d_du, float& d_dt) {
+// dD/du and dD/dt at the (u, t) that `dog_value` filled `k` for.
+inline void dog_derivatives(float u, float t, const DogTerms& k, float& d_du, float& d_dt) {
   const float s = 1.f - t;
-  const float e_u = std::exp(-u);
-  const float e_tu = std::exp(-t * u);
   if (s >= kNearLogT) {
-    const float numerator = e_u - t * e_tu;
-    d_du = (-e_u + t * t * e_tu) / s;
-    d_dt = (e_tu * (t * u - 1.f) * s + numerator) / (s * s);
-    return numerator / s;
+    const float numerator = k.e_u - t * k.e_tu;
+    d_du = (-k.e_u + t * t * k.e_tu) / s;
+    d_dt = (k.e_tu * (t * u - 1.f) * s + numerator) / (s * s);
+    return;
   }
-  float phi, psi;
-  phi_psi(s * u, phi, psi);
-  d_du = u * e_u * phi + (s - 2.f) * e_tu;
-  d_dt = -u * e_tu + u * u * e_u * psi;
-  return e_tu - u * e_u * phi;
+  d_du = u * k.e_u * k.phi + (s - 2.f) * k.e_tu;
+  d_dt = -u * k.e_tu + u * u * k.e_u * k.psi;
 }
 
 }  // namespace edgedog

@@ -53,6 +53,7 @@ Footprint footprint(const Splats& s, int32_t i, const Tile& tile) {
 // forward and backward passes call this same function, so they skip the same pixels.
 struct PixelHit {
   float dx, dy, u, D, alpha;
+  DogTerms terms;  // what the backward pass's derivatives of D reuse
   bool clamped;  // alpha hit kAlphaMax: no gradient through the footprint
 };
 
@@ -62,7 +63,7 @@ inline bool hit_pixel(const Footprint& fp, int px, int py, PixelHit& h) {
   const float q = fp.A * h.dx * h.dx + 2.f * fp.B * h.dx * h.dy + fp.C * h.dy * h.dy;
   h.u = q * fp.inv_2a;
   if (!(h.u <= fp.u_cut)) return false;
-  h.D = dog_value(h.u, fp.t);
+  h.D = dog_value(h.u, fp.t, h.terms);
   const float raw = fp.opacity * h.D;
   h.clamped = raw > kAlphaMax;
   h.alpha = h.clamped ? kAlphaMax : raw;
@@ -252,7 +253,7 @@ void rasterize_backward(const Splats& s, const Frame& f, const TileView& tiles,
             g_alpha += (1.f - behind_alpha) * T * go.alpha[pix];
             if (h.clamped) return;
             float dD_du, dD_dt;
-            dog_value_grad(h.u, fp.t, dD_du, dD_dt);
+            dog_derivatives(h.u, fp.t, h.terms, dD_du, dD_dt);
             gi[kOpacity] += g_alpha * h.D;
             const float g_D = g_alpha * fp.opacity;
             gi[kT] += g_D * dD_dt;
