@@ -80,6 +80,23 @@ def test_obj_has_one_object_per_curve(tmp_path):
     assert max(int(i) for r in polylines for i in r[1:]) == len(vertices)
 
 
+def test_trimesh_reads_the_ply_as_paths_and_the_obj_vertices(tmp_path):
+    """What CloudCompare or Blender users see, read by trimesh: the PLY as one path per
+    curve; the OBJ's vertices (trimesh's OBJ reader takes no `l` elements; Blender and
+    MeshLab do, and test_obj_has_one_object_per_curve checks them)."""
+    import trimesh
+
+    chains = curve_polylines(CURVES)
+    write_edges(tmp_path / "curves.ply", CURVES)
+    write_edges(tmp_path / "curves.obj", CURVES)
+    paths = trimesh.load(str(tmp_path / "curves.ply"))
+    assert isinstance(paths, trimesh.path.Path3D) and len(paths.entities) == len(chains)
+    for entity, chain in zip(paths.entities, chains):
+        np.testing.assert_allclose(paths.vertices[entity.points], chain, atol=1e-6)
+    cloud = trimesh.load(str(tmp_path / "curves.obj"))
+    np.testing.assert_allclose(cloud.vertices, np.concatenate(chains), atol=1e-9)
+
+
 @pytest.mark.parametrize("suffix", [".obj", ".ply"])
 def test_point_clouds_round_trip(tmp_path, suffix):
     points = np.random.default_rng(0).uniform(size=(30, 3))
