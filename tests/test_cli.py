@@ -87,10 +87,18 @@ def test_help(args):
 
 
 def test_demo_trains_extracts_and_scores_the_builtin_part(tmp_path):
+    from edgedog.train.config import preset
+    from edgedog.train.run_folder import config_digest
+
+    # A demo run left by an older version (named after the scene alone, other defaults) is not
+    # in the way.
+    older = tmp_path / "runs" / "demo-boss-canny"
+    older.mkdir(parents=True)
+    (older / "config.json").write_text(json.dumps({"scene": "elsewhere", "config": {"seed": 7}}))
     result = edgedog("demo", "--cache", tmp_path, "--quiet")
     assert result.returncode == 0, result.stderr
     assert (tmp_path / "scenes" / "boss-canny" / "transforms_train.json").is_file()
-    run = tmp_path / "runs" / "demo-boss-canny"
+    run = tmp_path / "runs" / f"demo-boss-canny-{config_digest(preset('preview'))}"
     for name in ("curves.obj", "curves.ply", "curves.json", "primitives.ply", "log.json"):
         assert (run / name).is_file(), name
     report = json.loads((run / "extract.json").read_text())

@@ -21,7 +21,8 @@ def add_parser(subparsers) -> None:
                         help=f"folder for generated scenes and the demo run (default: $EDGEDOG_CACHE or "
                              f"{default_cache()})")
     parser.add_argument("--out", type=Path, default=None,
-                        help="run folder (default: <cache>/runs/demo-boss-canny, named after the scene)")
+                        help="run folder (default: <cache>/runs/demo-boss-canny-<config digest>, named "
+                             "after the scene and the configuration)")
     parser.add_argument("--quiet", action="store_true", help="no progress bars")
     parser.set_defaults(run=run)
 
@@ -32,15 +33,16 @@ def run(args: argparse.Namespace) -> None:
     from edgedog.files import read_json
     from edgedog.scenes import load_scene
     from edgedog.train.config import preset
-    from edgedog.train.run_folder import RunFolder, check_same_run, write_run
+    from edgedog.train.run_folder import RunFolder, check_same_run, config_digest, write_run
     from edgedog.train.trainer import Trainer
 
     start = time.perf_counter()
     folder = builtin_scene_path(args.cache, progress=not args.quiet)
     generated = time.perf_counter() - start
-    # Named after the scene, so a demo run of an older version's scene is never resumed.
-    out = args.out or (args.cache or default_cache()) / "runs" / f"demo-{folder.name}"
     config = preset("preview")
+    # Named after the scene and the configuration: a demo run of an older version's scene or
+    # defaults is never resumed, nor refused in the way of this one.
+    out = args.out or (args.cache or default_cache()) / "runs" / f"demo-{folder.name}-{config_digest(config)}"
     run_folder = RunFolder(out, folder, "preview", config)
     check_same_run(run_folder)
     write_run(run_folder)

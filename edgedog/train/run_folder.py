@@ -6,6 +6,8 @@ any of them can resume, extract or inspect a run another one made.
 
 from __future__ import annotations
 
+import hashlib
+import json
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -38,6 +40,12 @@ def write_run(run: RunFolder) -> None:
     """Write config.json atomically, creating the run folder if needed."""
     atomic_write_json(run.path / RUN_CONFIG, {"scene": str(run.scene), "preset": run.preset,
                                               "config": to_dict(run.config)})
+
+
+def config_digest(config: TrainConfig) -> str:
+    """Eight hex digits naming a configuration: a default run folder named with them never meets a
+    run that another version's defaults made (it would be refused by `check_same_run`)."""
+    return hashlib.sha256(json.dumps(to_dict(config), sort_keys=True).encode()).hexdigest()[:8]
 
 
 def check_same_run(run: RunFolder) -> None:
