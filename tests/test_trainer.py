@@ -177,8 +177,6 @@ def test_settings_left_open_follow_the_detector():
     assert for_detector(dexined, "pidinet") == dexined  # a resolved config stays as it is
 
 
-
-
 def test_with_epochs_stretches_the_whole_schedule():
     paper = preset("paper")
     half = with_epochs(paper, 200)

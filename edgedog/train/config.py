@@ -196,9 +196,8 @@ def for_detector(config: TrainConfig, detector: str) -> TrainConfig:
     """The config with its detector-dependent settings left open (None, or 'auto') set for the
     maps of `detector` (a name as the scene or registry gives it, any case)."""
     tuned = DETECTOR_SETTINGS.get(detector.lower(), OTHER_MAPS)
-    open_keys = [key for key, value in OTHER_MAPS.items()
-                 if getattr(config, key) is None or getattr(config, key) == "auto"]
-    return dataclasses.replace(config, **{key: tuned[key] for key in open_keys})
+    return dataclasses.replace(config, **{key: tuned[key] for key in OTHER_MAPS
+                                          if getattr(config, key) in (None, "auto")})
 
 
 def _scale_epochs(config: TrainConfig, factor: float) -> dict:
