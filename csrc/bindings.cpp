@@ -1,10 +1,16 @@
-// The one translation unit that includes torch/extension.h: it checks tensors, allocates
-// outputs and binds the plain-C++ kernels of csrc/ to Python as `edgedog.renderer._C`.
+// The one translation unit that includes torch/extension.h. It registers the rasterizer's
+// stages as ops of torch's dispatcher (library `edgedog`, schemas below), with these functions
+// as their CPU kernels: each checks its tensors, allocates the outputs and calls the plain-C++
+// kernels of csrc/. Another device adds a TORCH_LIBRARY_IMPL(edgedog, <device>, m) block with
+// the same op names; renderer/ops.py calls the ops and owns their autograd. The Python module
+// `edgedog.renderer._C` itself only reports build facts and sets the allocator up.
 #include <torch/extension.h>
 
 #include <malloc.h>
 
+#include <optional>
 #include <string>
+#include <tuple>
 
 #include "build_info.h"
 #include "constants.h"
@@ -62,8 +68,12 @@ edgedog::ProjectInputs project_inputs(const Tensor& means, const Tensor& scales,
           support_q.data_ptr<float>(), eps2d};
 }
 
-std::vector<Tensor> project_forward(Tensor means, Tensor scales, Tensor quats, Tensor support_q, Tensor K,
-                                    Tensor w2c, int64_t width, int64_t height, double near, double eps2d) {
+using Tensors3 = std::tuple<Tensor, Tensor, Tensor>;
+using Tensors5 = std::tuple<Tensor, Tensor, Tensor, Tensor, Tensor>;
+
+Tensors5 project_forward(const Tensor& means, const Tensor& scales, const Tensor& quats, const Tensor& support_q,
+                         const Tensor& K, const Tensor& w2c, int64_t width, int64_t height, double near,
+                         double eps2d) {
   const auto in = project_inputs(means, scales, quats, support_q, eps2d);
   const auto cam = camera_from(K, w2c, width, height, near);
   auto f = means.options();
@@ -76,9 +86,9 @@ std::vector<Tensor> project_forward(Tensor means, Tensor scales, Tensor quats, T
   return {means2d, conics, depths, extents, valid};
 }
 
-std::vector<Tensor> project_backward(Tensor means, Tensor scales, Tensor quats, Tensor support_q, Tensor K,
-                                     Tensor w2c, int64_t width, int64_t height, double near, double eps2d,
-                                     Tensor g_means2d, Tensor g_conics, Tensor g_depths) {
+Tensors3 project_backward(const Tensor& means, const Tensor& scales, const Tensor& quats, const Tensor& support_q,
+                          const Tensor& K, const Tensor& w2c, int64_t width, int64_t height, double near,
+                          double eps2d, const Tensor& g_means2d, const Tensor& g_conics, const Tensor& g_depths) {
   const auto in = project_inputs(means, scales, quats, support_q, eps2d);
   const auto cam = camera_from(K, w2c, width, height, near);
   check_float(g_means2d, "grad means2d", {in.n, 2});
@@ -92,19 +102,19 @@ std::vector<Tensor> project_backward(Tensor means, Tensor scales, Tensor quats, 
   return {g_means, g_scales, g_quats};
 }
 
-std::vector<Tensor> tile_lists(Tensor means2d, Tensor extents, Tensor depths, Tensor valid, int64_t width,
-                               int64_t height) {
+std::tuple<Tensor, Tensor> tile_lists(const Tensor& means2d, const Tensor& depths, const Tensor& extents,
+                                      const Tensor& valid, int64_t width, int64_t height) {
   const int64_t n = means2d.size(0);
   check_float(means2d, "means2d", {n, 2});
-  check_float(extents, "extents", {n, 2});
   check_float(depths, "depths", {n});
+  check_float(extents, "extents", {n, 2});
   TORCH_CHECK(valid.scalar_type() == torch::kBool && valid.is_contiguous() && valid.numel() == n,
               "valid must be a contiguous bool tensor of n entries");
-  const auto lists = edgedog::build_tile_lists(n, means2d.data_ptr<float>(), extents.data_ptr<float>(),
-                                               depths.data_ptr<float>(),
+  const auto lists = edgedog::build_tile_lists(n, means2d.data_ptr<float>(), depths.data_ptr<float>(),
+                                               extents.data_ptr<float>(),
                                                reinterpret_cast<const uint8_t*>(valid.data_ptr<bool>()),
                                                int(width), int(height));
-  auto i32 = torch::TensorOptions().dtype(torch::kInt32);
+  auto i32 = means2d.options().dtype(torch::kInt32);
   Tensor offsets = torch::empty({int64_t(lists.offsets.size())}, i32);
   Tensor ids = torch::empty({int64_t(lists.ids.size())}, i32);
   std::copy(lists.offsets.begin(), lists.offsets.end(), offsets.data_ptr<int32_t>());
@@ -118,20 +128,21 @@ struct SplatArgs {
   edgedog::TileView tiles;
 };
 
-SplatArgs splat_args(const Tensor& means2d, const Tensor& conics, const Tensor& opacity, const Tensor& a,
-                     const Tensor& t, const Tensor& support, const Tensor& extents, const Tensor& colors,
-                     const Tensor& depths, const Tensor& offsets, const Tensor& ids, int64_t width,
-                     int64_t height, const c10::optional<Tensor>& background) {
+// The 14 arguments that every compositing op starts with, checked.
+SplatArgs splat_args(const Tensor& means2d, const Tensor& conics, const Tensor& depths, const Tensor& extents,
+                     const Tensor& opacity, const Tensor& a, const Tensor& t, const Tensor& support,
+                     const Tensor& colors, const Tensor& offsets, const Tensor& ids, int64_t width,
+                     int64_t height, const std::optional<Tensor>& background) {
   const int64_t n = means2d.size(0);
   check_float(means2d, "means2d", {n, 2});
   check_float(conics, "conics", {n, 3});
+  check_float(depths, "depths", {n});
+  check_float(extents, "extents", {n, 2});
   check_float(opacity, "opacity", {n});
   check_float(a, "a", {n});
   check_float(t, "t", {n});
   check_float(support, "support", {n});
-  check_float(extents, "extents", {n, 2});
   check_float(colors, "colors", {n, -1});
-  check_float(depths, "depths", {n});
   const int64_t C = colors.size(1);
   TORCH_CHECK(C >= 1, "colors need at least one channel");
   const int tiles_x = int((width + edgedog::kTileSize - 1) / edgedog::kTileSize);
@@ -145,18 +156,18 @@ SplatArgs splat_args(const Tensor& means2d, const Tensor& conics, const Tensor& 
     check_float(*background, "background", {C});
     bg = background->data_ptr<float>();
   }
-  return {{n, int(C), means2d.data_ptr<float>(), conics.data_ptr<float>(), opacity.data_ptr<float>(),
-           a.data_ptr<float>(), t.data_ptr<float>(), support.data_ptr<float>(), extents.data_ptr<float>(),
-           colors.data_ptr<float>(), depths.data_ptr<float>()},
+  return {{n, int(C), means2d.data_ptr<float>(), conics.data_ptr<float>(), depths.data_ptr<float>(),
+           extents.data_ptr<float>(), opacity.data_ptr<float>(), a.data_ptr<float>(), t.data_ptr<float>(),
+           support.data_ptr<float>(), colors.data_ptr<float>()},
           {int(width), int(height), bg},
           {tiles_x, tiles_y, offsets.data_ptr<int32_t>(), ids.data_ptr<int32_t>()}};
 }
 
-std::vector<Tensor> rasterize_forward(Tensor means2d, Tensor conics, Tensor opacity, Tensor a, Tensor t,
-                                      Tensor support, Tensor extents, Tensor colors, Tensor depths,
-                                      Tensor offsets, Tensor ids, int64_t width, int64_t height,
-                                      c10::optional<Tensor> background) {
-  const auto args = splat_args(means2d, conics, opacity, a, t, support, extents, colors, depths, offsets, ids,
+Tensors5 rasterize_forward(const Tensor& means2d, const Tensor& conics, const Tensor& depths, const Tensor& extents,
+                           const Tensor& opacity, const Tensor& a, const Tensor& t, const Tensor& support,
+                           const Tensor& colors, const Tensor& offsets, const Tensor& ids, int64_t width,
+                           int64_t height, const std::optional<Tensor>& background) {
+  const auto args = splat_args(means2d, conics, depths, extents, opacity, a, t, support, colors, offsets, ids,
                                width, height, background);
   auto f = means2d.options();
   Tensor image = torch::empty({height, width, colors.size(1)}, f);
@@ -175,51 +186,97 @@ void check_state(const Tensor& final_T, const Tensor& last, int64_t width, int64
               "last must be a contiguous int32 (H, W) tensor");
 }
 
-std::vector<Tensor> rasterize_backward(Tensor means2d, Tensor conics, Tensor opacity, Tensor a, Tensor t,
-                                       Tensor support, Tensor extents, Tensor colors, Tensor depths,
-                                       Tensor offsets, Tensor ids, int64_t width, int64_t height,
-                                       c10::optional<Tensor> background, Tensor final_T, Tensor last,
-                                       Tensor g_image, Tensor g_alpha, Tensor g_depth) {
-  const auto args = splat_args(means2d, conics, opacity, a, t, support, extents, colors, depths, offsets, ids,
+std::tuple<Tensor, Tensor, Tensor, Tensor, Tensor, Tensor, Tensor, Tensor> rasterize_backward(
+    const Tensor& means2d, const Tensor& conics, const Tensor& depths, const Tensor& extents, const Tensor& opacity,
+    const Tensor& a, const Tensor& t, const Tensor& support, const Tensor& colors, const Tensor& offsets,
+    const Tensor& ids, int64_t width, int64_t height, const std::optional<Tensor>& background,
+    const Tensor& final_T, const Tensor& last, const Tensor& g_image, const Tensor& g_alpha,
+    const Tensor& g_depth) {
+  const auto args = splat_args(means2d, conics, depths, extents, opacity, a, t, support, colors, offsets, ids,
                                width, height, background);
   check_state(final_T, last, width, height);
   check_float(g_image, "grad image", {height, width, colors.size(1)});
   check_float(g_alpha, "grad alpha", {height, width});
   check_float(g_depth, "grad depth", {height, width});
-  Tensor gm = torch::empty_like(means2d), gc = torch::empty_like(conics), go = torch::empty_like(opacity);
-  Tensor ga = torch::empty_like(a), gt = torch::empty_like(t), gcol = torch::empty_like(colors);
-  Tensor gd = torch::empty_like(depths), gm_abs = torch::empty_like(means2d);
+  Tensor gm = torch::empty_like(means2d), gc = torch::empty_like(conics), gd = torch::empty_like(depths);
+  Tensor go = torch::empty_like(opacity), ga = torch::empty_like(a), gt = torch::empty_like(t);
+  Tensor gcol = torch::empty_like(colors), absgrad = torch::empty_like(means2d);
   edgedog::rasterize_backward(args.splats, args.frame, args.tiles, final_T.data_ptr<float>(),
                               last.data_ptr<int32_t>(),
                               {g_image.data_ptr<float>(), g_alpha.data_ptr<float>(), g_depth.data_ptr<float>()},
-                              {gm.data_ptr<float>(), gm_abs.data_ptr<float>(), gc.data_ptr<float>(),
-                               go.data_ptr<float>(),
-                               ga.data_ptr<float>(), gt.data_ptr<float>(), gcol.data_ptr<float>(),
-                               gd.data_ptr<float>()});
-  return {gm, gc, go, ga, gt, gcol, gd, gm_abs};
+                              {gm.data_ptr<float>(), gc.data_ptr<float>(), gd.data_ptr<float>(),
+                               go.data_ptr<float>(), ga.data_ptr<float>(), gt.data_ptr<float>(),
+                               gcol.data_ptr<float>(), absgrad.data_ptr<float>()});
+  return {gm, gc, gd, go, ga, gt, gcol, absgrad};
 }
 
-void rasterize_fisher(Tensor means2d, Tensor conics, Tensor opacity, Tensor a, Tensor t, Tensor support,
-                      Tensor extents, Tensor colors, Tensor depths, Tensor offsets, Tensor ids, int64_t width,
-                      int64_t height, c10::optional<Tensor> background, Tensor final_T, Tensor last,
-                      Tensor fisher) {
-  const auto args = splat_args(means2d, conics, opacity, a, t, support, extents, colors, depths, offsets, ids,
+Tensor rasterize_fisher(const Tensor& means2d, const Tensor& conics, const Tensor& depths, const Tensor& extents,
+                        const Tensor& opacity, const Tensor& a, const Tensor& t, const Tensor& support,
+                        const Tensor& colors, const Tensor& offsets, const Tensor& ids, int64_t width,
+                        int64_t height, const std::optional<Tensor>& background, const Tensor& final_T,
+                        const Tensor& last) {
+  const auto args = splat_args(means2d, conics, depths, extents, opacity, a, t, support, colors, offsets, ids,
                                width, height, background);
   check_state(final_T, last, width, height);
-  check_float(fisher, "fisher", {means2d.size(0)});
+  Tensor fisher = torch::zeros({means2d.size(0)}, means2d.options());
   edgedog::rasterize_fisher(args.splats, args.frame, args.tiles, final_T.data_ptr<float>(),
                             last.data_ptr<int32_t>(), fisher.data_ptr<float>());
+  return fisher;
 }
 
 }  // namespace
 
+// The schemas: one argument order for every device's kernels and for the Python wrappers.
+// Per-primitive tensors come in the order the projection returns them (means2d, conics, depths,
+// extents, valid), then the activated parameters (opacity, a, t, support) and the colours.
+#define EDGEDOG_SPLATS                                                                              \
+  "Tensor means2d, Tensor conics, Tensor depths, Tensor extents, Tensor opacity, Tensor a, Tensor t, " \
+  "Tensor support, Tensor colors, Tensor offsets, Tensor ids, int width, int height, Tensor? background"
+#define EDGEDOG_PROJECT                                                                             \
+  "Tensor means, Tensor scales, Tensor quats, Tensor support_q, Tensor K, Tensor w2c, int width, " \
+  "int height, float near, float eps2d"
+
+TORCH_LIBRARY(edgedog, m) {
+  m.def("project_forward(" EDGEDOG_PROJECT
+        ") -> (Tensor means2d, Tensor conics, Tensor depths, Tensor extents, Tensor valid)");
+  m.def("project_backward(" EDGEDOG_PROJECT
+        ", Tensor g_means2d, Tensor g_conics, Tensor g_depths) -> (Tensor g_means, Tensor g_scales, "
+        "Tensor g_quats)");
+  m.def("tile_lists(Tensor means2d, Tensor depths, Tensor extents, Tensor valid, int width, int height)"
+        " -> (Tensor offsets, Tensor ids)");
+  m.def("rasterize_forward(" EDGEDOG_SPLATS
+        ") -> (Tensor image, Tensor alpha, Tensor depth, Tensor final_T, Tensor last)");
+  m.def("rasterize_backward(" EDGEDOG_SPLATS
+        ", Tensor final_T, Tensor last, Tensor g_image, Tensor g_alpha, Tensor g_depth) -> (Tensor g_means2d, "
+        "Tensor g_conics, Tensor g_depths, Tensor g_opacity, Tensor g_a, Tensor g_t, Tensor g_colors, "
+        "Tensor absgrad)");
+  m.def("rasterize_fisher(" EDGEDOG_SPLATS ", Tensor final_T, Tensor last) -> Tensor fisher");
+}
+
+#undef EDGEDOG_SPLATS
+#undef EDGEDOG_PROJECT
+
+TORCH_LIBRARY_IMPL(edgedog, CPU, m) {
+  m.impl("project_forward", &project_forward);
+  m.impl("project_backward", &project_backward);
+  m.impl("tile_lists", &tile_lists);
+  m.impl("rasterize_forward", &rasterize_forward);
+  m.impl("rasterize_backward", &rasterize_backward);
+  m.impl("rasterize_fisher", &rasterize_fisher);
+}
+
 PYBIND11_MODULE(TORCH_EXTENSION_NAME, m) {
-  m.doc() = "EdgeDoG CPU kernels";
-  // Every render allocates a few image-sized tensors. glibc serves blocks above its mmap
-  // threshold with fresh pages, and page faults on them cost as much as the rendering itself:
-  // keep such blocks on the heap, where they are reused from one step to the next.
-  mallopt(M_MMAP_THRESHOLD, 256 << 20);
-  mallopt(M_TRIM_THRESHOLD, 512 << 20);
+  m.doc() = "EdgeDoG CPU kernels: the ops are torch.ops.edgedog.*, registered on import";
+  m.def(
+      "tune_allocator",
+      []() {
+        // Every render allocates a few image-sized tensors. glibc serves blocks above its mmap
+        // threshold with fresh pages, and page faults on them cost as much as the rendering
+        // itself: keep such blocks on the heap, where they are reused from one step to the next.
+        mallopt(M_MMAP_THRESHOLD, 256 << 20);
+        mallopt(M_TRIM_THRESHOLD, 512 << 20);
+      },
+      "Keep blocks up to 256 MiB on glibc's heap (process-wide; called by load_extension).");
   m.def(
       "build_info",
       []() {
@@ -240,10 +297,4 @@ PYBIND11_MODULE(TORCH_EXTENSION_NAME, m) {
     d["frustum_slack"] = edgedog::kFrustumSlack;
     return d;
   }, "The kernels' constants, to check them against renderer/config.py.");
-  m.def("project_forward", &project_forward);
-  m.def("project_backward", &project_backward);
-  m.def("tile_lists", &tile_lists);
-  m.def("rasterize_forward", &rasterize_forward);
-  m.def("rasterize_backward", &rasterize_backward);
-  m.def("rasterize_fisher", &rasterize_fisher);
 }

@@ -1,8 +1,6 @@
 #include "build_info.h"
 
-#ifdef _OPENMP
-#include <omp.h>
-#endif
+#include "parallel.h"
 
 namespace edgedog {
 
@@ -10,11 +8,10 @@ BuildInfo build_info() {
   BuildInfo info;
 #ifdef _OPENMP
   info.openmp = true;
-  info.max_threads = omp_get_max_threads();
 #else
   info.openmp = false;
-  info.max_threads = 1;
 #endif
+  info.max_threads = max_threads();
 #if defined(__clang__)
   info.compiler = std::string("clang ") + __clang_version__;
 #elif defined(__GNUC__)

@@ -1,7 +1,7 @@
 // EWA projection of 3D Gaussians into one pinhole camera, forward and backward.
 // Plain C++ over contiguous float32 arrays; the maths in double (the 2x2 covariance of a thin,
 // long primitive loses its determinant to cancellation in float32). Mirrors
-// renderer/_torch_ref.py: project() and extents().
+// renderer/_torch_ref.py: project(), whose outputs include the support ellipse's extents.
 #pragma once
 
 #include <cstdint>

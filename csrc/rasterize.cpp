@@ -1,13 +1,12 @@
 #include "rasterize.h"
 
-#include <omp.h>
-
 #include <algorithm>
 #include <cmath>
 #include <vector>
 
 #include "constants.h"
 #include "dog_profile.h"
+#include "parallel.h"
 
 namespace edgedog {
 namespace {
@@ -230,10 +229,10 @@ void rasterize_backward(const Splats& s, const Frame& f, const TileView& tiles,
   const int num_tiles = tiles.tiles_x * tiles.tiles_y;
   const int C = s.channels;
   const int64_t per = kColors + C;
-  ThreadBuffers buffers(omp_get_max_threads(), s.n, per);
+  ThreadBuffers buffers(max_threads(), s.n, per);
 #pragma omp parallel
   {
-    float* g = buffers.of(omp_get_thread_num());
+    float* g = buffers.of(thread_index());
 #pragma omp for schedule(static, 4)  // fixed tile-to-thread map: reproducible sums
     for (int index = 0; index < num_tiles; ++index) {
       walk_tile_backwards(s, f, tiles, index, final_T, last,
@@ -278,8 +277,8 @@ void rasterize_backward(const Splats& s, const Frame& f, const TileView& tiles,
     const float* a = acc + i * per;
     grads.means2d[2 * i] = a[kMeanX];
     grads.means2d[2 * i + 1] = a[kMeanY];
-    grads.means2d_abs[2 * i] = a[kAbsMeanX];
-    grads.means2d_abs[2 * i + 1] = a[kAbsMeanY];
+    grads.absgrad[2 * i] = a[kAbsMeanX];
+    grads.absgrad[2 * i + 1] = a[kAbsMeanY];
     grads.conics[3 * i] = a[kConicA];
     grads.conics[3 * i + 1] = a[kConicB];
     grads.conics[3 * i + 2] = a[kConicC];
@@ -295,10 +294,10 @@ void rasterize_fisher(const Splats& s, const Frame& f, const TileView& tiles, co
                       const int32_t* last, float* fisher) {
   const int num_tiles = tiles.tiles_x * tiles.tiles_y;
   const int C = s.channels;
-  ThreadBuffers buffers(omp_get_max_threads(), s.n, 1);
+  ThreadBuffers buffers(max_threads(), s.n, 1);
 #pragma omp parallel
   {
-    float* g = buffers.of(omp_get_thread_num());
+    float* g = buffers.of(thread_index());
 #pragma omp for schedule(static, 4)  // fixed tile-to-thread map: reproducible sums
     for (int index = 0; index < num_tiles; ++index) {
       walk_tile_backwards(s, f, tiles, index, final_T, last,

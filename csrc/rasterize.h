@@ -8,18 +8,20 @@
 
 namespace edgedog {
 
-struct Splats {  // per-primitive screen-space inputs, all contiguous float32
+// Per-primitive screen-space inputs, all contiguous float32, in the order every binding and
+// Python wrapper takes them: the projection's outputs, the activated parameters, the colours.
+struct Splats {
   int64_t n;
   int channels;
   const float* means2d;   // (n, 2)
   const float* conics;    // (n, 3)
+  const float* depths;    // (n,)
+  const float* extents;   // (n, 2) half-widths in pixels of the support ellipse
   const float* opacity;   // (n,) in (0, 1)
   const float* a;         // (n,) inner scale of the footprint: u = q / (2a)
   const float* t;         // (n,) DoG ratio in [0, 1); 0 is the plain Gaussian
   const float* support;   // (n,) largest u that can reach the minimum alpha
-  const float* extents;   // (n, 2) half-widths in pixels of the support ellipse
   const float* colors;    // (n, channels)
-  const float* depths;    // (n,)
 };
 
 struct Frame {
@@ -43,13 +45,13 @@ struct RasterGradOutputs {  // dL/d(image, alpha, depth)
 
 struct SplatGrads {  // dL/d(inputs), written (not accumulated)
   float* means2d;
-  float* means2d_abs;  // (N, 2) sum over pixels of |per-pixel dL/dmean2d| (gsplat's absgrad)
   float* conics;
+  float* depths;
   float* opacity;
   float* a;
   float* t;
   float* colors;
-  float* depths;
+  float* absgrad;  // (N, 2) sum over pixels of |per-pixel dL/dmean2d| (gsplat's absgrad)
 };
 
 void rasterize_forward(const Splats& s, const Frame& f, const TileView& tiles, const RasterOutputs& out);

@@ -26,8 +26,8 @@ TileRect tile_rect(const float* m, const float* e, int width, int height) {
 
 }  // namespace
 
-TileLists build_tile_lists(int64_t n, const float* means2d, const float* extents,
-                           const float* depths, const uint8_t* valid, int width, int height) {
+TileLists build_tile_lists(int64_t n, const float* means2d, const float* depths,
+                           const float* extents, const uint8_t* valid, int width, int height) {
   TileLists lists;
   lists.tiles_x = (width + kTileSize - 1) / kTileSize;
   lists.tiles_y = (height + kTileSize - 1) / kTileSize;

@@ -1,8 +1,9 @@
 """Plain-torch reference of every rasterizer stage, and of the whole render.
 
-Differentiable by autograd in any dtype (the tests run it in float64 as ground truth and
-`gradcheck` it); slow. The C++ kernels in csrc/ implement exactly these functions, stage by
-stage, with hand-written backward passes. The maths is documented in docs/METHOD.md.
+Differentiable by autograd in any dtype and on any device (the tests run it in float64 as
+ground truth and `gradcheck` it); slow. The ops of `ops.py` (the C++ kernels in csrc/)
+implement exactly these functions, stage by stage, with hand-written backward passes, and take
+their arguments in the same order. The maths is documented in docs/METHOD.md.
 """
 
 from __future__ import annotations
@@ -138,7 +139,7 @@ def support_boxes(means2d, extents, valid, width: int, height: int):
     return lo, hi, valid & (extents > 0).all(1) & (lo <= hi).all(1)
 
 
-def tile_lists(means2d, extents, depths, valid, width: int, height: int):
+def tile_lists(means2d, depths, extents, valid, width: int, height: int):
     """Primitives whose support box reaches each 16x16 tile, front to back (no gradients).
 
     Returns:
@@ -180,8 +181,11 @@ def composite(alpha: torch.Tensor, colors: torch.Tensor, depths: torch.Tensor, b
 
 
 def footprint_response(pixels, means2d, conics, a, t, support):
-    """(P, N) DoG response D of N primitives at P pixel centres (P, 2), and where u <= support."""
-    d = pixels[:, None, :] - means2d[None]
+    """(P, N) DoG response D of N primitives at P pixel centres (P, 2), and where u <= support.
+
+    means2d: (N, 2), or (P, N, 2) with one copy per pixel (its gradient is then per pixel).
+    """
+    d = pixels[:, None, :] - means2d
     A, B, C = conics.unbind(-1)
     q = A * d[..., 0] ** 2 + 2 * B * d[..., 0] * d[..., 1] + C * d[..., 1] ** 2
     u = q / (2 * a)
@@ -195,23 +199,30 @@ def alpha_from_response(D, inside, opacity):
     return torch.where(inside & (alpha >= ALPHA_MIN), alpha, torch.zeros_like(alpha))
 
 
-def _tiles(lists, width: int, height: int, dtype):
-    """(tile's primitive ids, pixel rows, pixel columns, pixel centres (P, 2)) of non-empty tiles."""
+def _tiles(lists, width: int, height: int, like: torch.Tensor):
+    """(tile's primitive ids, pixel rows, pixel columns, pixel centres (P, 2) in `like`'s dtype
+    and device) of the non-empty tiles."""
     tiles_x = -(-width // TILE_SIZE)
     for index, ids in enumerate(lists):
         if len(ids) == 0:
             continue
         y0, x0 = (index // tiles_x) * TILE_SIZE, (index % tiles_x) * TILE_SIZE
-        ys, xs = torch.meshgrid(torch.arange(y0, min(y0 + TILE_SIZE, height)),
-                                torch.arange(x0, min(x0 + TILE_SIZE, width)), indexing="ij")
+        ys, xs = torch.meshgrid(torch.arange(y0, min(y0 + TILE_SIZE, height), device=like.device),
+                                torch.arange(x0, min(x0 + TILE_SIZE, width), device=like.device),
+                                indexing="ij")
         ys, xs = ys.reshape(-1), xs.reshape(-1)
-        yield ids, ys, xs, torch.stack([xs, ys], -1).to(dtype)
+        yield ids, ys, xs, torch.stack([xs, ys], -1).to(like.dtype)
 
 
-def rasterize(means2d, conics, depths, opacity, a, t, colors, support, extents, valid,
-              width: int, height: int, background=None):
-    """Tile by tile, the splats' image (H, W, C), alpha (H, W) and depth (H, W)."""
-    lists = tile_lists(means2d.detach(), extents, depths.detach(), valid, width, height)
+def rasterize(means2d, conics, depths, extents, opacity, a, t, support, colors, valid,
+              width: int, height: int, background=None, absgrad=None):
+    """Tile by tile, the splats' image (H, W, C), alpha (H, W) and depth (H, W).
+
+    Arguments as for ops.rasterize, with `valid` (N,) bool (from `project`) in place of the tile
+    lists, which are built here. `absgrad`, when given, gets from each backward pass through a
+    tile add((N, 2) tensor): that tile's sum over pixels of |per-pixel dL/dmean2d|.
+    """
+    lists = tile_lists(means2d.detach(), depths.detach(), extents, valid, width, height)
     # Zero, but connected to every input: with nothing visible, backward still gives zeros.
     # (Sums of empty slices: exactly 0 even where an input holds NaN.)
     zero = sum(x[:0].sum() for x in (means2d, conics, depths, opacity, a, t, colors))
@@ -220,8 +231,11 @@ def rasterize(means2d, conics, depths, opacity, a, t, colors, support, extents, 
     depth_out = means2d.new_zeros(height, width) + zero
     if background is not None:
         image = image + background
-    for ids, ys, xs, pixels in _tiles(lists, width, height, means2d.dtype):
-        D, inside = footprint_response(pixels, means2d[ids], conics[ids], a[ids], t[ids], support[ids])
+    for ids, ys, xs, pixels in _tiles(lists, width, height, means2d):
+        means = means2d[ids].expand(len(pixels), -1, -1)  # (P, n, 2): one copy per pixel
+        if absgrad is not None and means.requires_grad:
+            means.register_hook(_absgrad_hook(absgrad, ids, len(means2d)))
+        D, inside = footprint_response(pixels, means, conics[ids], a[ids], t[ids], support[ids])
         img, alp, dep = composite(alpha_from_response(D, inside, opacity[ids]), colors[ids], depths[ids],
                                   background)
         image = image.index_put((ys, xs), img)
@@ -230,12 +244,25 @@ def rasterize(means2d, conics, depths, opacity, a, t, colors, support, extents, 
     return image, alpha_out, depth_out
 
 
-def fisher_per_view(means2d, conics, depths, opacity, a, t, colors, support, extents, valid,
+def _absgrad_hook(absgrad, ids: torch.Tensor, n: int):
+    """A hook on one tile's per-pixel means (P, len(ids), 2) that adds their absolute gradients,
+    summed over the pixels, to `absgrad` as an (n, 2) tensor (nothing when no gradient reached
+    them: autograd then passes None)."""
+    def hook(grad: torch.Tensor | None) -> None:
+        if grad is not None:
+            absgrad.add(grad.new_zeros(n, 2).index_add_(0, ids, grad.abs().sum(0)))
+    return hook
+
+
+def fisher_per_view(means2d, conics, depths, extents, opacity, a, t, support, colors, valid,
                     width: int, height: int, background=None):
-    """(N,) sum over pixels and channels of (dI_c / dD_i)^2, by autograd with D as leaves."""
-    lists = tile_lists(means2d, extents, depths, valid, width, height)
+    """(N,) sum over pixels and channels of (dI_c / dD_i)^2, by autograd with D as leaves.
+
+    Arguments as for `rasterize`.
+    """
+    lists = tile_lists(means2d, depths, extents, valid, width, height)
     fisher = means2d.new_zeros(means2d.shape[0])
-    for ids, _, _, pixels in _tiles(lists, width, height, means2d.dtype):
+    for ids, _, _, pixels in _tiles(lists, width, height, means2d):
         D, inside = footprint_response(pixels, means2d[ids], conics[ids], a[ids], t[ids], support[ids])
         D = D.detach().requires_grad_(True)
         image, _, _ = composite(alpha_from_response(D, inside, opacity[ids]), colors[ids], depths[ids],

@@ -23,7 +23,7 @@ FRUSTUM_SLACK = 1.3
 
 Kernel = Literal["gaussian", "dog"]
 KActivation = Literal["sigmoid", "exp"]
-Backend = Literal["cpp", "torch"]
+Backend = Literal["kernels", "torch"]
 
 
 @dataclass(frozen=True)
@@ -38,21 +38,22 @@ class RasterConfig:
         eps2d: screen-space dilation added to the 2D covariance's diagonal, in pixels^2
             (3DGS's anti-aliasing low-pass, without opacity compensation).
         background: colour composited behind the primitives, one value per channel; None is 0.
-        backend: "cpp" (the compiled kernels) or "torch" (the slow reference).
+        backend: "kernels" (the ops registered for the primitives' device: the C++ kernels on
+            the CPU) or "torch" (the slow reference, on any device).
     """
 
     kernel: Kernel = "dog"
     k_activation: KActivation = "sigmoid"
     eps2d: float = 0.3
     background: tuple[float, ...] | None = None
-    backend: Backend = "cpp"
+    backend: Backend = "kernels"
 
     def __post_init__(self):
         if self.kernel not in ("gaussian", "dog"):
             raise ValueError(f"kernel must be 'gaussian' or 'dog', got {self.kernel!r}")
         if self.k_activation not in ("sigmoid", "exp"):
             raise ValueError(f"k_activation must be 'sigmoid' or 'exp', got {self.k_activation!r}")
-        if self.backend not in ("cpp", "torch"):
-            raise ValueError(f"backend must be 'cpp' or 'torch', got {self.backend!r}")
+        if self.backend not in ("kernels", "torch"):
+            raise ValueError(f"backend must be 'kernels' or 'torch', got {self.backend!r}")
         if not self.eps2d >= 0:
             raise ValueError(f"eps2d must be >= 0, got {self.eps2d}")

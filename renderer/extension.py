@@ -1,4 +1,5 @@
-"""Lazy loading of the compiled CPU kernels `edgedog.renderer._C`."""
+"""Lazy loading of the compiled extension `edgedog.renderer._C`, which registers the rasterizer's
+ops (`torch.ops.edgedog.*`) and their CPU kernels."""
 
 from __future__ import annotations
 
@@ -20,7 +21,11 @@ class ExtensionNotBuiltError(EdgeDogError):
 
 @functools.cache
 def load_extension() -> ModuleType:
-    """Import the compiled extension once and return it.
+    """Import the compiled extension once, set the allocator up for rendering, return it.
+
+    The allocator setting (glibc keeps blocks up to 256 MiB on its heap, see
+    csrc/bindings.cpp) is process-wide: made here, when the kernels are first needed, rather
+    than as a side effect of importing the module.
 
     Raises:
         ExtensionNotBuiltError: with a one-line message saying how to build it.
@@ -28,8 +33,10 @@ def load_extension() -> ModuleType:
     import torch  # noqa: F401  (the extension links against libtorch: load it first)
 
     try:
-        return importlib.import_module("edgedog.renderer._C")
+        extension = importlib.import_module("edgedog.renderer._C")
     except ImportError as exc:
         raise ExtensionNotBuiltError(
             f"the C++ extension edgedog.renderer._C is not built ({exc}); {BUILD_HINT}"
         ) from None
+    extension.tune_allocator()
+    return extension

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import torch
 from edgedog.renderer import _torch_ref as ref
@@ -65,6 +65,10 @@ class RasterCamera:
         """From an `edgedog.scenes.Camera`."""
         return cls(torch.as_tensor(camera.K, dtype=torch.float64),
                    torch.as_tensor(camera.w2c, dtype=torch.float64), camera.width, camera.height, near)
+
+    def to(self, device: torch.device | str) -> RasterCamera:
+        """This camera with K and w2c on `device` (tensors already there are not copied)."""
+        return replace(self, K=self.K.to(device), w2c=self.w2c.to(device))
 
 
 def dog_shape(k_raw: torch.Tensor, config: RasterConfig) -> tuple[torch.Tensor, torch.Tensor]:

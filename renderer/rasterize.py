@@ -1,19 +1,34 @@
 """The public rasterizer: primitives + camera(s) -> image, alpha, depth, screen-space means.
 
-Stages (each swappable between the C++ kernels and the torch reference): activation, EWA
-projection, tile intersection with depth sort, compositing. docs/METHOD.md has the maths.
+Stages: activation, EWA projection, tile intersection with depth sort, compositing. A backend
+runs them: "kernels", the ops registered for the primitives' device (ops.py), or "torch", the
+reference (_torch_ref.py); each is a render and a Fisher function in BACKENDS, picked by
+RasterConfig.backend. docs/METHOD.md has the maths.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import torch
 from edgedog.renderer import _torch_ref as ref
 from edgedog.renderer import ops
 from edgedog.renderer.config import RasterConfig
 from edgedog.renderer.primitives import Activated, Primitives, RasterCamera, activate
+
+
+class AbsGradSink:
+    """Receives, from each backward pass through a render, the (N, 2) sum over pixels of
+    |per-pixel dL/dmean2d| (gsplat's "absgrad", which densification uses: unlike |dL/dmean2d|,
+    pulls from both sides of an edge add up instead of cancelling). Every backend fills it."""
+
+    def __init__(self):
+        self.value: torch.Tensor | None = None
+
+    def add(self, absgrad: torch.Tensor) -> None:
+        self.value = absgrad if self.value is None else self.value + absgrad
 
 
 @dataclass
@@ -28,7 +43,8 @@ class RenderOutput:
             backward (for densification), when the primitives require gradients.
         visible: (N,) bool, the primitive reaches at least one pixel of this view.
         absgrad: after backward, `.value` is the (N, 2) sum over pixels of |per-pixel
-            dL/dmean2d| (C++ backend only; None before backward or with the torch backend).
+            dL/dmean2d| (None before backward; with the torch backend, also when the means
+            need no gradient).
     """
 
     image: torch.Tensor
@@ -36,80 +52,89 @@ class RenderOutput:
     depth: torch.Tensor
     means2d: torch.Tensor
     visible: torch.Tensor
-    absgrad: ops.AbsGradSink
+    absgrad: AbsGradSink
 
 
-def _background(config: RasterConfig, channels: int, dtype: torch.dtype) -> torch.Tensor | None:
+def _background(config: RasterConfig, channels: int, dtype: torch.dtype, device: torch.device):
+    """(C,) the configured background, or None."""
     if config.background is None:
         return None
-    bg = torch.tensor(config.background, dtype=dtype)
+    bg = torch.tensor(config.background, dtype=dtype, device=device)
     if bg.numel() != channels:
         raise ValueError(f"background has {bg.numel()} values for {channels} channels")
     return bg
 
 
 def _project_reference(prims: Primitives, act: Activated, camera: RasterCamera, config: RasterConfig):
-    """The reference projection in the primitives' dtype."""
-    dtype = prims.means.dtype
-    return ref.project(prims.means, act.scales, prims.quats, act.support_q, camera.K.to(dtype),
-                       camera.w2c.to(dtype), camera.width, camera.height, camera.near, config.eps2d)
+    """The reference projection in the primitives' dtype and device."""
+    K, w2c = camera.K.to(prims.means), camera.w2c.to(prims.means)
+    return ref.project(prims.means, act.scales, prims.quats, act.support_q, K, w2c, camera.width,
+                       camera.height, camera.near, config.eps2d)
 
 
 def _project_and_tile(prims: Primitives, act: Activated, camera: RasterCamera, config: RasterConfig):
-    """The C++ projection and tile lists: means2d, conics, depths, extents, valid, offsets, ids."""
+    """The ops' projection and tile lists: means2d, conics, depths, extents, valid, offsets, ids."""
     means2d, conics, depths, extents, valid = ops.project(
         prims.means, act.scales, prims.quats, act.support_q, camera, config.eps2d)
-    offsets, ids = ops.tile_lists(means2d, extents, depths, valid, camera.width, camera.height)
+    offsets, ids = ops.tile_lists(means2d, depths, extents, valid, camera.width, camera.height)
     return means2d, conics, depths, extents, valid, offsets, ids
+
+
+def _render_kernels(prims: Primitives, act: Activated, camera: RasterCamera, config: RasterConfig,
+                    absgrad: AbsGradSink):
+    """means2d, extents, valid and (image, alpha, depth) by the ops (float32)."""
+    means2d, conics, depths, extents, valid, offsets, ids = _project_and_tile(prims, act, camera, config)
+    background = _background(config, prims.colors.shape[1], prims.colors.dtype, prims.colors.device)
+    rendered = ops.rasterize(means2d, conics, depths, extents, act.opacity, act.a, act.t, act.support,
+                             prims.colors, offsets, ids, camera.width, camera.height, background, absgrad)
+    return means2d, extents, valid, rendered
+
+
+def _render_reference(prims: Primitives, act: Activated, camera: RasterCamera, config: RasterConfig,
+                      absgrad: AbsGradSink):
+    """means2d, extents, valid and (image, alpha, depth) by the reference, in the primitives' dtype."""
+    means2d, conics, depths, extents, valid = _project_reference(prims, act, camera, config)
+    background = _background(config, prims.colors.shape[1], prims.colors.dtype, prims.colors.device)
+    rendered = ref.rasterize(means2d, conics, depths, extents, act.opacity, act.a, act.t, act.support,
+                             prims.colors, valid, camera.width, camera.height, background, absgrad)
+    return means2d, extents, valid, rendered
+
+
+def _fisher_kernels(prims: Primitives, act: Activated, camera: RasterCamera, config: RasterConfig):
+    """(N,) float32 Fisher information of one view by the ops."""
+    means2d, conics, depths, extents, _, offsets, ids = _project_and_tile(prims, act, camera, config)
+    background = _background(config, prims.colors.shape[1], torch.float32, prims.colors.device)
+    return ops.fisher(means2d, conics, depths, extents, act.opacity, act.a, act.t, act.support, prims.colors,
+                      offsets, ids, camera.width, camera.height, background)
+
+
+def _fisher_torch(prims: Primitives, act: Activated, camera: RasterCamera, config: RasterConfig):
+    """(N,) float32 Fisher information of one view by the reference."""
+    return fisher_reference(prims, camera, config).to(torch.float32)
+
+
+class Implementation(NamedTuple):
+    """How a backend runs the stages: a render and a Fisher function of (primitives, activated,
+    camera, config[, absgrad sink]), as `_render_kernels` and `_fisher_kernels`."""
+
+    render: Callable
+    fisher: Callable
+
+
+BACKENDS = {"kernels": Implementation(_render_kernels, _fisher_kernels),
+            "torch": Implementation(_render_reference, _fisher_torch)}
+"""RasterConfig.backend -> its implementation."""
 
 
 def _render_one(
     prims: Primitives, act: Activated, camera: RasterCamera, config: RasterConfig
 ) -> RenderOutput:
-    background = _background(config, prims.colors.shape[1], prims.colors.dtype)
-    w, h = camera.width, camera.height
-    absgrad = ops.AbsGradSink()
-    if config.backend == "cpp":
-        means2d, conics, depths, extents, valid, offsets, ids = _project_and_tile(prims, act, camera, config)
-        if means2d.requires_grad:
-            means2d.retain_grad()
-        image, alpha, depth = ops.rasterize(
-            means2d,
-            conics,
-            act.opacity,
-            act.a,
-            act.t,
-            prims.colors,
-            depths,
-            act.support,
-            extents,
-            offsets,
-            ids,
-            w,
-            h,
-            background,
-            absgrad,
-        )
-    else:
-        means2d, conics, depths, extents, valid = _project_reference(prims, act, camera, config)
-        if means2d.requires_grad:
-            means2d.retain_grad()
-        image, alpha, depth = ref.rasterize(
-            means2d,
-            conics,
-            depths,
-            act.opacity,
-            act.a,
-            act.t,
-            prims.colors,
-            act.support,
-            extents,
-            valid,
-            w,
-            h,
-            background,
-        )
-    visible = ref.support_boxes(means2d.detach(), extents, valid, w, h)[2]
+    absgrad = AbsGradSink()
+    render = BACKENDS[config.backend].render
+    means2d, extents, valid, (image, alpha, depth) = render(prims, act, camera, config, absgrad)
+    if means2d.requires_grad:
+        means2d.retain_grad()
+    visible = ref.support_boxes(means2d.detach(), extents, valid, camera.width, camera.height)[2]
     return RenderOutput(image, alpha, depth, means2d, visible, absgrad)
 
 
@@ -118,7 +143,10 @@ def rasterize(
     cameras: RasterCamera | Sequence[RasterCamera],
     config: RasterConfig = RasterConfig(),
 ) -> RenderOutput | list[RenderOutput]:
-    """Render the primitives into one camera (-> RenderOutput) or several (-> a list)."""
+    """Render the primitives into one camera (-> RenderOutput) or several (-> a list).
+
+    Everything runs on the primitives' device (the cameras are moved there).
+    """
     act = activate(primitives, config)
     if isinstance(cameras, RasterCamera):
         return _render_one(primitives, act, cameras, config)
@@ -128,38 +156,18 @@ def rasterize(
 def fisher_information(
     primitives: Primitives, cameras: Sequence[RasterCamera], config: RasterConfig = RasterConfig()
 ) -> torch.Tensor:
-    """(N,) U_i = sum over views, pixels and channels of (dI/dD_i)^2, without autograd.
+    """(N,) float32 U_i = sum over views, pixels and channels of (dI/dD_i)^2, without autograd.
 
     D_i is primitive i's footprint response at a pixel (the DoG profile, before opacity): the
     Gauss-Newton approximation of the Fisher information of the render w.r.t. the footprint.
     The primitive-level pruning ranks primitives by it.
     """
+    fisher = BACKENDS[config.backend].fisher
     with torch.no_grad():
         act = activate(primitives, config)
-        total = torch.zeros(len(primitives), dtype=torch.float32)
+        total = torch.zeros(len(primitives), dtype=torch.float32, device=primitives.means.device)
         for camera in cameras:
-            w, h = camera.width, camera.height
-            if config.backend == "cpp":
-                means2d, conics, depths, extents, _, offsets, ids = _project_and_tile(
-                    primitives, act, camera, config)
-                total += ops.fisher(
-                    means2d,
-                    conics,
-                    act.opacity,
-                    act.a,
-                    act.t,
-                    primitives.colors,
-                    depths,
-                    act.support,
-                    extents,
-                    offsets,
-                    ids,
-                    w,
-                    h,
-                    _background(config, primitives.colors.shape[1], torch.float32),
-                )
-            else:
-                total += fisher_reference(primitives, camera, config).to(torch.float32)
+            total += fisher(primitives, act, camera, config)
     return total
 
 
@@ -173,18 +181,7 @@ def fisher_reference(primitives: Primitives, camera: RasterCamera, config: Raste
         act = activate(primitives, config)
         dtype = primitives.means.dtype
         means2d, conics, depths, extents, valid = _project_reference(primitives, act, camera, config)
-        return ref.fisher_per_view(
-            means2d.detach(),
-            conics.detach(),
-            depths.detach(),
-            act.opacity.detach(),
-            act.a.detach(),
-            act.t.detach(),
-            primitives.colors.detach(),
-            act.support,
-            extents,
-            valid,
-            camera.width,
-            camera.height,
-            _background(config, primitives.colors.shape[1], dtype),
-        )
+        background = _background(config, primitives.colors.shape[1], dtype, primitives.colors.device)
+        return ref.fisher_per_view(means2d.detach(), conics.detach(), depths.detach(), extents,
+                                   act.opacity.detach(), act.a.detach(), act.t.detach(), act.support,
+                                   primitives.colors.detach(), valid, camera.width, camera.height, background)

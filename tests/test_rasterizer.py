@@ -1,20 +1,23 @@
-"""The C++ rasterizer against the float64 torch reference, stage by stage and end to end.
+"""The rasterizer's kernels against the float64 torch reference, stage by stage and end to end.
 
-The reference (`backend="torch"`, float64 primitives) is the ground truth: it is itself checked
-with `torch.autograd.gradcheck`. The C++ kernels compute in float32 (projection maths in
-double), so their outputs and gradients are compared with tolerances relative to each tensor's
-scale (its largest magnitude): measured worst errors are about 1e-5 of the scale, the tolerances
-are 1e-4 of it, and a deliberate 1% perturbation (of a cotangent, or the other kernel's output)
-is shown to exceed them.
+The reference (`backend="torch"`, float64 primitives on the CPU) is the ground truth: it is
+itself checked with `torch.autograd.gradcheck`. Every test of the kernels runs once per device
+that has kernels (`@each_device`, see tests/backends.py; the C++ CPU kernels today). The C++
+kernels compute in float32 (projection maths in double), so their outputs and gradients are
+compared with tolerances relative to each tensor's scale (its largest magnitude): measured
+worst errors are about 1e-5 of the scale, the tolerances are 1e-4 of it, and a deliberate 1%
+perturbation (of a cotangent, or the other kernel's output) is shown to exceed them.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import inspect
 import math
 
 import pytest
 import torch
+from backends import each_device, on_device
 from edgedog.renderer import _torch_ref as ref
 from edgedog.renderer import load_extension, ops
 from edgedog.renderer.config import (
@@ -46,8 +49,9 @@ REL_TOL = 1e-4
 
 
 def assert_close_scaled(actual, expected, rel=REL_TOL, name=""):
-    expected = expected.detach().to(F64)
-    actual = actual.detach().to(F64)
+    """|actual - expected| <= rel x max|expected| elementwise, compared in float64 on the CPU."""
+    expected = expected.detach().to("cpu", F64)
+    actual = actual.detach().to("cpu", F64)
     scale = max(expected.abs().max().item(), 1e-12) if expected.numel() else 1.0
     torch.testing.assert_close(actual, expected, rtol=0.0, atol=rel * scale,
                                msg=lambda m: f"{name}: {m} (scale {scale:.3g})")
@@ -60,8 +64,8 @@ def make_camera(width=64, height=48, view=0, focal=160.0, views=8, near=0.01) ->
     return RasterCamera(K, torch.as_tensor(cam.w2c, dtype=F64), width, height, near)
 
 
-def leaf_copy(prims: Primitives, dtype) -> Primitives:
-    return Primitives(*(getattr(prims, k).detach().to(dtype).clone().requires_grad_(True) for k in PARAMS))
+def leaf_copy(prims: Primitives, dtype, device="cpu") -> Primitives:
+    return on_device(prims, device, dtype, leaves=True)
 
 
 def cotangents(height, width, channels, seed):
@@ -71,11 +75,12 @@ def cotangents(height, width, channels, seed):
             torch.randn(height, width, generator=g, dtype=F64))
 
 
-def render_with_grads(prims, camera, config, cot, dtype):
-    """Render leaf copies in `dtype`, backward <out, cot>; (output, {param: grad, 'means2d': grad})."""
-    leaves = leaf_copy(prims, dtype)
+def render_with_grads(prims, camera, config, cot, dtype, device="cpu"):
+    """Render leaf copies in `dtype` on `device`, backward <out, cot>; (output, {param: grad,
+    'means2d': grad}), on `device`."""
+    leaves = leaf_copy(prims, dtype, device)
     out = rasterize(leaves, camera, config)
-    g_image, g_alpha, g_depth = (c.to(dtype) for c in cot)
+    g_image, g_alpha, g_depth = (c.to(device, dtype) for c in cot)
     loss = (out.image * g_image).sum() + (out.alpha * g_alpha).sum() + (out.depth * g_depth).sum()
     loss.backward()
     grads = {k: getattr(leaves, k).grad for k in PARAMS}
@@ -112,19 +117,21 @@ def camera():
 # ---------------------------------------------------------------------------------------------
 
 
+@each_device
 @pytest.mark.parametrize("kernel,activation,background,channels", CONFIGS)
-def test_render_and_gradients_match_reference(camera, kernel, activation, background, channels):
+def test_render_and_gradients_match_reference(camera, kernel, activation, background, channels, device):
     config = config_of(kernel, activation, background, channels)
     prims = random_primitives(150, channels, seed=len(kernel) + channels)
     cot = cotangents(camera.height, camera.width, channels, seed=7)
     out_ref, g_ref = render_with_grads(prims, camera, torch_config(config), cot, F64)
-    out, g = render_with_grads(prims, camera, config, cot, torch.float32)
+    out, g = render_with_grads(prims, camera, config, cot, torch.float32, device)
 
     assert out.image.shape == (camera.height, camera.width, channels) and out.image.dtype == torch.float32
+    assert out.image.device.type == device
     assert out.alpha.shape == out.depth.shape == (camera.height, camera.width)
     # A real scene, not an empty image: most primitives visible, many pixels covered.
     assert out.visible.sum() > 100 and (out_ref.alpha > 0.1).sum() > 200
-    assert torch.equal(out.visible, out_ref.visible)
+    assert torch.equal(out.visible.cpu(), out_ref.visible)
     for name in ("image", "alpha", "depth"):
         assert_close_scaled(getattr(out, name), getattr(out_ref, name), name=name)
     assert_close_scaled(out.means2d, out_ref.means2d, rel=1e-6, name="means2d")
@@ -137,10 +144,12 @@ def test_render_and_gradients_match_reference(camera, kernel, activation, backgr
         assert_close_scaled(g[name], expected, name=f"grad {name}")
 
 
+@each_device
 @pytest.mark.parametrize("kernel", ["dog", "gaussian"])
-def test_absgrad_is_the_sum_of_per_pixel_absolute_mean_gradients(kernel):
+def test_absgrad_is_the_sum_of_per_pixel_absolute_mean_gradients(kernel, device):
     """absgrad_i = sum over pixels p of |d<out_p, cot_p>/dmean2d_i|, from the reference by one
-    autograd pass per pixel; it bounds |dL/dmean2d| and exceeds it where pulls cancel."""
+    autograd pass per pixel; it bounds |dL/dmean2d| and exceeds it where pulls cancel. The
+    kernels and the torch backend both give it."""
     camera = make_camera(width=16, height=12, focal=48.0)
     config = RasterConfig(kernel=kernel)
     prims = random_primitives(60, 1, seed=5)
@@ -152,19 +161,25 @@ def test_absgrad_is_the_sum_of_per_pixel_absolute_mean_gradients(kernel):
     for value in per_pixel:
         (grad,) = torch.autograd.grad(value, out_ref.means2d, retain_graph=True)
         expected += grad.abs()
-    out, grads = render_with_grads(prims, camera, config, (g_image, g_alpha, g_depth), torch.float32)
+    out, grads = render_with_grads(prims, camera, config, (g_image, g_alpha, g_depth), torch.float32, device)
     assert expected.abs().max() > 0 and out_ref.alpha.max() > 0.5
     assert_close_scaled(out.absgrad.value, expected, name="absgrad")
-    assert torch.all(out.absgrad.value >= grads["means2d"].abs() - 1e-6)
-    assert (out.absgrad.value > 2 * grads["means2d"].abs() + 1e-3).any()
+    absgrad, means2d_grad = out.absgrad.value.cpu(), grads["means2d"].cpu()
+    assert torch.all(absgrad >= means2d_grad.abs() - 1e-6)
+    assert (absgrad > 2 * means2d_grad.abs() + 1e-3).any()
+    # The torch backend's, from per-pixel copies of the means: the same sums in float64.
+    out_torch, _ = render_with_grads(prims, camera, torch_config(config), (g_image, g_alpha, g_depth), F64)
+    assert out_torch.absgrad.value.dtype == F64
+    assert_close_scaled(out_torch.absgrad.value, expected, rel=1e-12, name="torch absgrad")
 
 
-def test_tolerances_detect_perturbations(camera):
+@each_device
+def test_tolerances_detect_perturbations(camera, device):
     """The tolerances above are tight enough to see a 1% error or the other kernel's output."""
     config = config_of("dog", "sigmoid", True, 3)
     prims = random_primitives(150, 3, seed=3)
     cot = cotangents(camera.height, camera.width, 3, seed=7)
-    out, g = render_with_grads(prims, camera, config, cot, torch.float32)
+    out, g = render_with_grads(prims, camera, config, cot, torch.float32, device)
     # 1% more image cotangent: every gradient fed by the image moves by ~1% of its scale.
     bumped = (cot[0] * 1.01, cot[1], cot[2])
     _, g_bumped = render_with_grads(prims, camera, torch_config(config), bumped, F64)
@@ -179,7 +194,7 @@ def test_tolerances_detect_perturbations(camera):
         assert_close_scaled(g["colors"], g_pixel["colors"], name="colors")
     # The Gaussian kernel's render is not the DoG's.
     out_gauss, g_gauss = render_with_grads(prims, camera, dataclasses.replace(config, kernel="gaussian"),
-                                           cot, torch.float32)
+                                           cot, torch.float32, device)
     for name in ("image", "alpha", "depth"):
         with pytest.raises(AssertionError):
             assert_close_scaled(getattr(out_gauss, name), getattr(out, name), name=name)
@@ -187,15 +202,16 @@ def test_tolerances_detect_perturbations(camera):
         assert_close_scaled(g_gauss["means"], g["means"], name="means")
 
 
-def test_multiple_cameras_match_single_renders(camera):
-    prims = random_primitives(100, 1, seed=5, dtype=torch.float32)
+@each_device
+def test_multiple_cameras_match_single_renders(camera, device):
+    prims = on_device(random_primitives(100, 1, seed=5, dtype=torch.float32), device)
     other = make_camera(40, 40, view=3, focal=120.0)
     outs = rasterize(prims, [camera, other])
     assert isinstance(outs, list) and len(outs) == 2
     for cam, out in zip([camera, other], outs):
         single = rasterize(prims, cam)
         assert torch.equal(out.image, single.image) and torch.equal(out.alpha, single.alpha)
-        assert out.image.shape == (cam.height, cam.width, 1)
+        assert out.image.shape == (cam.height, cam.width, 1) and out.image.device.type == device
 
 
 # ---------------------------------------------------------------------------------------------
@@ -203,7 +219,8 @@ def test_multiple_cameras_match_single_renders(camera):
 # ---------------------------------------------------------------------------------------------
 
 
-def test_project_forward_and_backward_match_reference():
+@each_device
+def test_project_forward_and_backward_match_reference(device):
     cam = make_camera(64, 48, view=2)
     prims = random_primitives(300, 1, seed=11)
     # Some primitives outside the frustum slack (their Jacobian is clamped), some behind the
@@ -218,10 +235,13 @@ def test_project_forward_and_backward_match_reference():
     support_q = 2 * torch.rand(300, dtype=F64, generator=torch.Generator().manual_seed(1)) * 10
     args64 = [means.clone().requires_grad_(True), scales.clone().requires_grad_(True),
               prims.quats.clone().requires_grad_(True)]
-    args32 = [x.detach().float().requires_grad_(True) for x in args64]
+    args32 = [x.detach().to(device, torch.float32).requires_grad_(True) for x in args64]
+    support_q32 = support_q.to(device, torch.float32)
     eps2d = 0.3
     out_ref = ref.project(*args64, support_q, cam.K, cam.w2c, cam.width, cam.height, cam.near, eps2d)
-    out = ops.project(*args32, support_q.float(), cam, eps2d)
+    out = ops.project(*args32, support_q32, cam, eps2d)
+    assert all(x.device.type == device for x in out)
+    out = [x.cpu() for x in out]  # (differentiable copies)
     names = ("means2d", "conics", "depths", "extents", "valid")
     assert torch.equal(out[4], out_ref[4])
     valid = out_ref[4]
@@ -244,18 +264,19 @@ def test_project_forward_and_backward_match_reference():
     # z = 1, still depend on the means. Harmless end to end, since the compositing never sends
     # a cotangent to a culled primitive; compared below with their cotangents zeroed.)
     for a in grads:
-        assert (a[~valid] == 0).all()
+        assert (a.cpu()[~valid] == 0).all()
     cots = [c * valid.reshape(-1, *([1] * (c.dim() - 1))) for c in cots]
     grads_ref = torch.autograd.grad(sum((o * c).sum() for o, c in zip(out_ref[:3], cots)), args64)
-    out = ops.project(*args32, support_q.float(), cam, eps2d)
+    out = [x.cpu() for x in ops.project(*args32, support_q32, cam, eps2d)]
     grads = torch.autograd.grad(sum((o * c.float()).sum() for o, c in zip(out[:3], cots)), args32)
     for name, a, b in zip(("means", "scales", "quats"), grads, grads_ref):
         # Measured worst |err| / scale 1.0e-7 (double maths, float32 in and out).
         assert_close_scaled(a, b, rel=1e-6, name=f"grad {name}")
 
 
+@each_device
 @pytest.mark.parametrize("width,height", [(64, 48), (37, 23), (16, 16), (1, 1)])
-def test_tile_lists_match_reference(width, height):
+def test_tile_lists_match_reference(width, height, device):
     g = torch.Generator().manual_seed(width)
     n = 400
     means2d = torch.rand(n, 2, generator=g) * torch.tensor([width + 40.0, height + 40.0]) - 20
@@ -264,8 +285,9 @@ def test_tile_lists_match_reference(width, height):
     depths = torch.rand(n, generator=g) * 5
     depths[50:60] = depths[40]  # ties keep index order
     valid = torch.rand(n, generator=g) > 0.1
-    offsets, ids = ops.tile_lists(means2d, extents, depths, valid, width, height)
-    expected = ref.tile_lists(means2d.double(), extents.double(), depths.double(), valid, width, height)
+    on = (x.to(device) for x in (means2d, depths, extents, valid))
+    offsets, ids = (x.cpu() for x in ops.tile_lists(*on, width, height))
+    expected = ref.tile_lists(means2d.double(), depths.double(), extents.double(), valid, width, height)
     tiles = -(-width // TILE_SIZE) * -(-height // TILE_SIZE)
     assert offsets.dtype == ids.dtype == torch.int32
     assert offsets.shape == (tiles + 1,) and len(expected) == tiles
@@ -418,17 +440,18 @@ def test_support_u_reaches_alpha_min():
     assert opacity[0] * D_at[0] == pytest.approx(ALPHA_MIN, rel=1e-9)
 
 
-def test_gaussian_kernel_is_dog_with_t_to_zero(camera):
-    """C++ kernel="gaussian" == C++ kernel="dog" with t = exp(-exp(3)) ~ 2e-9 and a = 1."""
+@each_device
+def test_gaussian_kernel_is_dog_with_t_to_zero(camera, device):
+    """Kernels' kernel="gaussian" == their kernel="dog" with t = exp(-exp(3)) ~ 2e-9 and a = 1."""
     prims = random_primitives(150, 3, seed=9, dtype=torch.float32)
     prims.k_raw = torch.tensor([[0.0, 3.0]]).expand(150, 2).contiguous()
     cot = cotangents(camera.height, camera.width, 3, seed=1)
     dog = RasterConfig(kernel="dog", k_activation="exp", background=(0.1, 0.2, 0.3))
     a, t = activate(prims, dog).a, activate(prims, dog).t
     assert (a == 1).all() and (t < 3e-9).all() and (t > 0).all()
-    out_dog, g_dog = render_with_grads(prims, camera, dog, cot, torch.float32)
+    out_dog, g_dog = render_with_grads(prims, camera, dog, cot, torch.float32, device)
     out_gauss, g_gauss = render_with_grads(prims, camera, dataclasses.replace(dog, kernel="gaussian"), cot,
-                                           torch.float32)
+                                           torch.float32, device)
     assert torch.equal(out_dog.visible, out_gauss.visible) and out_dog.visible.sum() > 100
     for name in ("image", "alpha", "depth"):
         # D differs by t (1 - exp(-u)) < 2e-9: float32 rounding only.
@@ -447,15 +470,16 @@ def test_gaussian_kernel_is_dog_with_t_to_zero(camera):
 # ---------------------------------------------------------------------------------------------
 
 
+@each_device
 @pytest.mark.parametrize("kernel,channels,background", [("dog", 1, False), ("dog", 3, True),
                                                         ("gaussian", 1, True), ("gaussian", 3, False)])
-def test_fisher_matches_reference(kernel, channels, background):
+def test_fisher_matches_reference(kernel, channels, background, device):
     cam = make_camera(40, 40, view=4, focal=130.0)
     prims = random_primitives(100, channels, seed=21 + channels)
     config = config_of(kernel, "sigmoid", background, channels)
     expected = fisher_reference(prims, cam, config)
-    got = fisher_information(leaf_copy(prims, torch.float32), [cam], config)
-    assert got.shape == (100,) and got.dtype == torch.float32
+    got = fisher_information(leaf_copy(prims, torch.float32, device), [cam], config)
+    assert got.shape == (100,) and got.dtype == torch.float32 and got.device.type == device
     assert (expected > 0).sum() > 50
     # Measured worst |err| / max 2.1e-7 (sums of squares of float32 products).
     assert_close_scaled(got, expected, rel=1e-5, name="fisher")
@@ -464,12 +488,14 @@ def test_fisher_matches_reference(kernel, channels, background):
                                expected.float(), rtol=1e-6, atol=0)
 
 
-def test_fisher_properties():
+@each_device
+def test_fisher_properties(device):
     cams = [make_camera(40, 40, view=v, focal=130.0) for v in (0, 5)]
     prims = random_primitives(120, 3, seed=8, dtype=torch.float32)
     far = prims.means.clone()
     far[:10] = torch.tensor([50.0, -40.0, 60.0])  # far outside every view
     prims.means = far
+    prims = on_device(prims, device)
     config = RasterConfig(background=(0.2, 0.2, 0.2))
     per_view = [fisher_information(prims, [c], config) for c in cams]
     both = fisher_information(prims, cams, config)
@@ -482,8 +508,9 @@ def test_fisher_properties():
         assert (f[~visible] == 0).all() and (f[visible] > 0).sum() > 0.8 * visible.sum()
 
 
+@each_device
 @pytest.mark.parametrize("kernel,channels", [("dog", 1), ("dog", 3), ("gaussian", 2)])
-def test_fisher_is_squared_gradient_at_one_pixel(kernel, channels):
+def test_fisher_is_squared_gradient_at_one_pixel(kernel, channels, device):
     """On a 1x1 image, U_i = sum_c (dI_c/dD_i)^2, with I composited by hand in the test."""
     K = torch.tensor([[100.0, 0, 0], [0, 100.0, 0], [0, 0, 1]], dtype=F64)
     cam = RasterCamera(K, torch.eye(4, dtype=F64), 1, 1)  # camera at the origin looking down +z
@@ -517,12 +544,12 @@ def test_fisher_is_squared_gradient_at_one_pixel(kernel, channels):
     for c in range(channels):
         (grad,) = torch.autograd.grad(image[c], D, retain_graph=True)
         expected += grad**2
-    got = fisher_information(prims, [cam], config)
-    torch.testing.assert_close(got.double(), expected, rtol=1e-4, atol=1e-7)
+    got = fisher_information(on_device(prims, device), [cam], config)
+    torch.testing.assert_close(got.to("cpu", F64), expected, rtol=1e-4, atol=1e-7)
     torch.testing.assert_close(fisher_reference(prims, cam, config), expected, rtol=1e-10, atol=1e-14)
     # The rendered pixel is the hand composite.
-    out = rasterize(prims, cam, config)
-    torch.testing.assert_close(out.image[0, 0].double(), image.detach(), rtol=0, atol=1e-5)
+    out = rasterize(on_device(prims, device), cam, config)
+    torch.testing.assert_close(out.image[0, 0].to("cpu", F64), image.detach(), rtol=0, atol=1e-5)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -539,7 +566,9 @@ def test_cpp_constants_match_config():
     assert c["frustum_slack"] == FRUSTUM_SLACK
 
 
-def test_far_primitives_invisible_with_zero_gradients(camera):
+@each_device
+def test_far_primitives_invisible_with_zero_gradients(camera, device):
+    """Either backend, on the device: primitives outside the view get no gradient at all."""
     prims = random_primitives(80, 1, seed=13)
     means = prims.means.clone()
     means[:5] += torch.tensor([30.0, 0.0, 0.0])  # far outside the view, in front or behind
@@ -548,8 +577,8 @@ def test_far_primitives_invisible_with_zero_gradients(camera):
     prims.means = means
     cot = cotangents(camera.height, camera.width, 1, seed=2)
     for config in (RasterConfig(), RasterConfig(backend="torch")):
-        dtype = torch.float32 if config.backend == "cpp" else F64
-        out, g = render_with_grads(prims, camera, config, cot, dtype)
+        dtype = torch.float32 if config.backend == "kernels" else F64
+        out, g = render_with_grads(prims, camera, config, cot, dtype, device)
         assert not out.visible[:10].any() and out.visible[10:].sum() > 50
         for name, grad in g.items():
             assert (grad[:10] == 0).all(), name
@@ -579,20 +608,79 @@ def _two_saturated_layers():
     return cam, prims
 
 
-def test_two_saturated_layers_float32_reference():
-    """In float32 the C++ kernels and the reference agree: after one clamped layer T = 0.01, the
+@each_device
+def test_two_saturated_layers_float32_reference(device):
+    """In float32 the kernels and the reference agree: after one clamped layer T = 0.01, the
     second leaves (1 - 0.99f)^2 ~ 1e-4, above EARLY_STOP_T (moved off that tie), so both composite."""
     cam, prims = _two_saturated_layers()
-    out = rasterize(prims, cam)
+    out = rasterize(on_device(prims, device), cam)
     out32 = rasterize(Primitives(*(getattr(prims, k).float() for k in PARAMS)), cam,
                       RasterConfig(backend="torch"))
     assert out.alpha[8, 8].item() == pytest.approx(1 - (1 - ALPHA_MAX) ** 2, abs=1e-6)
-    torch.testing.assert_close(out.image, out32.image, rtol=0, atol=1e-6)
+    torch.testing.assert_close(out.image.cpu(), out32.image, rtol=0, atol=1e-6)
 
 
-def test_two_saturated_layers_match_float64_reference():
+@each_device
+def test_two_saturated_layers_match_float64_reference(device):
     cam, prims = _two_saturated_layers()
-    out = rasterize(prims, cam)
+    out = rasterize(on_device(prims, device), cam)
     out_ref = rasterize(prims, cam, RasterConfig(backend="torch"))
     assert_close_scaled(out.image, out_ref.image, name="image")
     assert_close_scaled(out.alpha, out_ref.alpha, name="alpha")
+
+
+# ---------------------------------------------------------------------------------------------
+# The device seam: ops with one argument order, kernels per device.
+# ---------------------------------------------------------------------------------------------
+
+
+def _op_names(op: str, part: str = "arguments") -> list[str]:
+    """The names of an edgedog op's arguments or returns, from its registered schema."""
+    load_extension()
+    return [x.name for x in getattr(getattr(torch.ops.edgedog, op).default._schema, part)]
+
+
+def _parameters(function) -> list[str]:
+    return list(inspect.signature(function).parameters)
+
+
+def test_ops_wrappers_and_reference_share_one_argument_order():
+    project, projected = _op_names("project_forward"), _op_names("project_forward", "returns")
+    assert projected == ["means2d", "conics", "depths", "extents", "valid"]
+    assert _parameters(ref.project) == project
+    wrapper = _parameters(ops.project)  # the camera stands for its fields, in their order
+    at = wrapper.index("camera")
+    assert wrapper[:at] + [f.name for f in dataclasses.fields(RasterCamera)] + wrapper[at + 1:] == project
+    assert _op_names("project_backward") == project + [f"g_{x}" for x in projected[:3]]
+    assert _op_names("project_backward", "returns") == ["g_means", "g_scales", "g_quats"]
+
+    tiles = _op_names("tile_lists")
+    assert tiles == _parameters(ops.tile_lists) == _parameters(ref.tile_lists)
+    assert tiles[:4] == [x for x in projected if x in tiles]  # in the projection's order
+
+    splats = _op_names("rasterize_forward")
+    assert splats[:4] == projected[:4]
+    assert splats == _parameters(ops.fisher) == _parameters(ops.rasterize)[:-1]  # last: absgrad
+    for function in (ref.rasterize, ref.fisher_per_view):  # `valid` in place of the tile lists
+        params = [x for x in _parameters(function) if x != "absgrad"]
+        at = params.index("valid")
+        assert params[:at] + ["offsets", "ids"] + params[at + 1:] == splats, function.__name__
+    rendered = _op_names("rasterize_forward", "returns")
+    assert rendered == ["image", "alpha", "depth", "final_T", "last"]
+    assert _op_names("rasterize_fisher") == splats + rendered[3:]
+    assert _op_names("rasterize_backward") == splats + rendered[3:] + [f"g_{x}" for x in rendered[:3]]
+    differentiable = ["means2d", "conics", "depths", "opacity", "a", "t", "colors"]
+    assert _op_names("rasterize_backward", "returns") == [f"g_{x}" for x in differentiable] + ["absgrad"]
+
+
+def test_kernels_refuse_a_device_without_kernels():
+    assert "cpu" in ops.kernel_devices()
+    camera = make_camera()
+    moved = camera.to("meta")
+    assert moved.K.device.type == moved.w2c.device.type == "meta" and camera.K.device.type == "cpu"
+    assert (moved.width, moved.height, moved.near) == (camera.width, camera.height, camera.near)
+    prims = on_device(random_primitives(10, 1, dtype=torch.float32), "meta")
+    with pytest.raises(ValueError, match=r"no kernels for device 'meta' \(only for cpu.*backend='torch'"):
+        rasterize(prims, camera)
+    with pytest.raises(ValueError, match="'kernels' or 'torch'"):
+        RasterConfig(backend="cpp")

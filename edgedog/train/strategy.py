@@ -79,7 +79,7 @@ class DensityStrategy:
         `skip`: the render's first primitives are fixed lower layers, not the strategy's model.
         """
         if out.absgrad.value is None:
-            raise RuntimeError("density control needs the C++ rasterizer's absgrad (backend='cpp')")
+            raise RuntimeError("density control needs the render's absgrad: the means must require gradients")
         state.absgrad += out.absgrad.value[skip:].norm(dim=1)
 
     def at_epoch_end(self, epoch: int, model: EdgeModel, optimizers: Optimizers, state: StrategyState,
