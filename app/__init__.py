@@ -11,3 +11,7 @@ immutable snapshots that the window reads.
   UI thread; colors.py, layers.py: colour maps and the layer list.
 - layout.py and *_panel.py: the panels.
 """
+
+MIN_SIZE = (640, 480)
+"""The smallest window (screen coordinates) the layout serves; here, so that the command line
+checks --size without loading imgui."""

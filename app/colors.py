@@ -12,10 +12,16 @@ GOLDEN = 0.618033988749895
 
 
 def colormap(values: np.ndarray, lo: float, hi: float, name: str = "viridis") -> np.ndarray:
-    """(...) values -> (..., 3) uint8 RGB, `lo` and `hi` at the ends of the map; NaN is black."""
+    """(...) values -> (..., 3) uint8 RGB, `lo` and `hi` at the ends of the map; NaN is black.
+
+    Without a range (hi <= lo, e.g. w(Up) = 1 everywhere) positive values take the map's top
+    colour and the others its bottom one: a constant 1 is not drawn as 0.
+    """
     values = np.asarray(values, np.float64)
-    scaled = np.clip((values - lo) / (hi - lo), 0, 1) if hi > lo else np.zeros_like(values)
+    scaled = np.clip((values - lo) / (hi - lo), 0, 1) if hi > lo else (values > 0).astype(np.float64)
     levels = np.nan_to_num(scaled * 255).round().astype(np.uint8)
+    if not levels.size:  # cv2.applyColorMap returns None for an empty array
+        return np.zeros((*levels.shape, 3), np.uint8)
     if COLORMAPS[name] is None:
         rgb = np.repeat(levels[..., None], 3, axis=-1)
     else:

@@ -1,29 +1,25 @@
 """The controls panel (run, live and restart settings, display, curves and export) and the
-status line. Widgets only edit the UI state or make requests; the studio acts on them."""
+status line. Widgets only edit the UI state or make requests; the studio acts on them. Every
+widget's tooltip says what it does and when it applies: live (at the next training step) or at
+the next (re)start.
+"""
 
 from __future__ import annotations
 
-from edgedog.app import layout
-from edgedog.app.extraction import EXPORT_FORMATS
+from edgedog.app import layout, widgets
 from edgedog.app.layers import layer_members, list_new_layers
-from edgedog.app.state import COLOR_MODES, KERNELS, WEIGHTINGS
+from edgedog.app.state import COLOR_MODES, EXPORT_FORMATS, KERNELS, WEIGHTING_FORMULAS, WEIGHTINGS
 from edgedog.app.worker import FAILED, FINISHED, PAUSED, STOPPED
 from imgui_bundle import imgui
 
-from edgedog.train.config import PRESETS
+from edgedog.train.config import MAX_LAYERS, PRESETS
 
 ERROR_COLOR = imgui.ImVec4(1.0, 0.4, 0.35, 1.0)
+PROGRESS_COLOR = imgui.ImVec4(0.22, 0.45, 0.75, 1.0)
+"""The progress bar's fill: dark enough for its white text."""
 KEEP_RATIO_RANGE = (0.1, 1.0)
-
-
-def _combo(label: str, value: str, items: tuple[str, ...]) -> str:
-    """A combo box over `items` that returns the chosen item."""
-    _, index = imgui.combo(label, items.index(value), list(items))
-    return items[index]
-
-
-def _checkbox(label: str, value: bool) -> bool:
-    return imgui.checkbox(label, value)[1]
+AT_RESTART = "Applies at the next Start or Restart (a running trainer cannot change it)."
+LIVE = "Live: applied at the next training step, and recorded in the run's log.json."
 
 
 def _scene(studio) -> None:
@@ -31,36 +27,47 @@ def _scene(studio) -> None:
     imgui.text(f"Scene  {session.scene_path.name}")
     imgui.set_item_tooltip(str(session.scene_path))
     imgui.same_line()
-    if imgui.small_button("Open..."):
+    if widgets.button("Open...", "open a scene folder (a new run) or a run folder (to resume or "
+                      "view it) in a folder browser (Ctrl+O)", small=True):
         state.request("open")
     imgui.text_disabled("or drop a scene or run folder on the window")
     imgui.text_wrapped(f"Run  {session.run_dir or '(not started)'}")
 
 
+def _start_label(studio) -> str:
+    if studio.session.resumable:
+        return "Resume run"
+    return "Start new run" if studio.session.saved is not None else "Start"
+
+
 def _training(studio) -> None:
     imgui.separator_text("Training")
-    worker, state, session = studio.worker, studio.state, studio.session
+    worker, state = studio.worker, studio.state
     phase = None if worker is None else worker.phase
+    if worker is not None:  # above the buttons: their tooltips open below the mouse
+        imgui.text(f"{phase}  {worker.steps_per_second:.1f} steps/s  {worker.steps} steps")
     if phase in (None, FINISHED, STOPPED, FAILED):
-        if imgui.button("Resume run" if session.resumable else "Start"):
+        if widgets.button(_start_label(studio), "train: the opened run folder continues where it was saved; "
+                          "otherwise a new run folder under the runs folder (space)"):
             state.request("start")
     elif phase == PAUSED:
-        if imgui.button("Resume"):
+        if widgets.button("Resume", "continue training (space)"):
             state.request("resume")
-    elif imgui.button("Pause"):
+    elif widgets.button("Pause", "pause training between two steps (space)"):
         state.request("pause")
     imgui.same_line()
-    if imgui.button("Restart"):
+    if widgets.button("Restart", "stop this run and train a new run folder with the settings below "
+                      "(the stopped run keeps its last checkpoint)"):
         state.request("restart")
-    imgui.set_item_tooltip("a new run folder with the settings below")
     latest = studio.latest
     if worker is not None:
         info = worker.info
-        imgui.text(f"{phase}  {worker.steps_per_second:.0f} steps/s")
         if latest is not None and info is not None:
             snapshot = latest.snapshot
+            imgui.push_style_color(imgui.Col_.plot_histogram, PROGRESS_COLOR)
             imgui.progress_bar(min(snapshot.epoch / info.epochs, 1.0), imgui.ImVec2(-1, 0),
                                f"epoch {snapshot.epoch}/{info.epochs}  step {snapshot.step}")
+            imgui.pop_style_color()
             imgui.text(f"{len(snapshot.means)} primitives  loss {snapshot.loss:.4f}")
         if worker.error:
             imgui.text_colored(ERROR_COLOR, "the trainer stopped with an error:")
@@ -73,9 +80,15 @@ def _training(studio) -> None:
 def _live(state) -> None:
     imgui.separator_text("Live (at the next step)")
     live = state.live
-    live.keep_ratio = imgui.slider_float("pruning p", live.keep_ratio, *KEEP_RATIO_RANGE, "%.2f")[1]
-    imgui.set_item_tooltip("share of primitives kept by each Fisher pruning")
-    live.weighting = _combo("w(Up)", live.weighting, WEIGHTINGS)
+    live.keep_ratio = widgets.slider_float(
+        "pruning p", live.keep_ratio, *KEEP_RATIO_RANGE,
+        f"Share p of the primitives each Fisher pruning keeps (the most informative ones). {LIVE}")
+    formulas = [f"w = {WEIGHTING_FORMULAS[name]}" for name in WEIGHTINGS]
+    live.weighting = widgets.combo(
+        "w(U)", live.weighting, WEIGHTINGS,
+        "The loss weight of each pixel as a function of its uncertainty U (the normalised depth "
+        f"gradient): 1 ignores U, exp(-U) and 1 - U trust smooth depth, U and exp(U) edges. {LIVE}",
+        formulas)
 
 
 def _restart(studio) -> None:
@@ -83,31 +96,53 @@ def _restart(studio) -> None:
     restart = studio.state.restart
     if studio.session.resumable:
         imgui.text_disabled("Resume run continues the opened run as saved")
-    preset = _combo("preset", restart.preset, PRESETS)
+    preset = widgets.combo("preset", restart.preset, PRESETS,
+                           "paper: 400 epochs at full resolution; fast: 200; preview: 100 at half. "
+                           f"{AT_RESTART}")
     if preset != restart.preset:
         restart.preset, restart.epochs = preset, studio.session.base_config(preset).epochs
-    restart.epochs = max(1, imgui.input_int("epochs", restart.epochs, 10, 100)[1])
-    restart.k_init = tuple(imgui.input_float2("k init", list(restart.k_init), "%.2f")[1])
-    restart.kernel = _combo("kernel", restart.kernel, KERNELS)
-    restart.pixel_uncertainty = _checkbox("pixel uncertainty w(Up)", restart.pixel_uncertainty)
-    restart.primitive_uncertainty = _checkbox("primitive uncertainty (Fisher)", restart.primitive_uncertainty)
+    restart.epochs = max(1, widgets.input_int(
+        "epochs", restart.epochs,
+        f"Epochs of the next run; the preset's schedule stretches with them. {AT_RESTART}",
+        10, 100))
+    restart.k_init = widgets.input_float2(
+        "k init", restart.k_init, f"Initial DoG shape logits (inner scale a, surround ratio t). {AT_RESTART}")
+    restart.kernel = widgets.combo("kernel", restart.kernel, KERNELS,
+                                   f"dog: difference of Gaussians; gaussian: plain Gaussians. {AT_RESTART}")
+    restart.pixel_uncertainty = widgets.checkbox(
+        "pixel uncertainty w(U)", restart.pixel_uncertainty,
+        f"Weight the loss by w(U) (chosen above); off: every pixel counts the same. {AT_RESTART}")
+    restart.primitive_uncertainty = widgets.checkbox(
+        "primitive uncertainty (Fisher)", restart.primitive_uncertainty,
+        f"Prune by Fisher information every few epochs, keeping the share p. {AT_RESTART}")
+    restart.layers = min(max(widgets.input_int(
+        "layers", restart.layers,
+        "Multi-granularity: train layers L0, L1, ... bottom up, each on finer edge maps with the layers "
+        "below fixed, as `edgedog train --layers L0,L1,...` (PiDiNet NYUD / BSDS / Multicue maps when "
+        f"its weights are found, else Canny at falling thresholds); 1: one layer. {AT_RESTART}"), 1),
+        MAX_LAYERS)
 
 
 def _display(studio) -> None:
     imgui.separator_text("3D view")
     display, latest = studio.state.display, studio.latest
-    display.splats = _checkbox("splats", display.splats)
+    display.splats = widgets.checkbox("splats", display.splats, "show the primitives as DoG splats")
     imgui.same_line()
-    display.edges = _checkbox("curves", display.edges)
+    display.edges = widgets.checkbox("curves", display.edges, "show the latest extracted curves")
     imgui.same_line()
-    display.cameras = _checkbox("cameras", display.cameras)
+    display.cameras = widgets.checkbox("cameras", display.cameras,
+                                       "show the training cameras (the selected view in yellow)")
     imgui.begin_disabled(studio.session.ground_truth is None)
-    display.ground_truth = _checkbox("ground truth", display.ground_truth)
+    display.ground_truth = widgets.checkbox("ground truth", display.ground_truth,
+                                            "show the scene's ground-truth edge points (green)")
     imgui.end_disabled()
     imgui.same_line()
     pruned = 0 if latest is None else len(latest.snapshot.pruned_positions)
-    display.pruned = _checkbox(f"pruned ({pruned}, red)", display.pruned)
-    display.color_by = _combo("colour by", display.color_by, COLOR_MODES)
+    display.pruned = widgets.checkbox(f"pruned ({pruned}, red)##pruned", display.pruned,
+                                      "show the centres removed by the last Fisher pruning")
+    display.color_by = widgets.combo("colour by", display.color_by, COLOR_MODES,
+                                     "colour the splats by their opacity or DoG shape (a: inner scale, "
+                                     "t: surround ratio) on viridis; white: no colouring")
     if studio.view.color_range is not None:
         imgui.text_disabled("viridis: {:.3g} .. {:.3g}".format(*studio.view.color_range))
     imgui.text("Layers")
@@ -115,7 +150,10 @@ def _display(studio) -> None:
     if latest is not None:
         list_new_layers(display.layers, latest.snapshot)
     for name in list(display.layers):
-        display.layers[name] = _checkbox(f"{name}##layer", display.layers[name])
+        display.layers[name] = widgets.checkbox(
+            f"{name}##layer", display.layers[name],
+            f"show layer {name} in the 3D view and the inspectors; the curves and exports are of the "
+            "layers shown")
         imgui.same_line()
         imgui.text_disabled(f"{len(members.get(name, ()))} primitives")
 
@@ -123,23 +161,27 @@ def _display(studio) -> None:
 def _curves(studio) -> None:
     imgui.separator_text("Curves")
     state, extraction = studio.state, studio.extraction
-    if imgui.button("Extract now"):
+    if widgets.button("Extract now", "fit curves to the latest snapshot (scored against the ground truth "
+                      "when the scene has one)"):
         state.request("extract")
     imgui.same_line()
-    state.auto_extract = _checkbox(f"every {state.auto_extract_seconds:.0f} s", state.auto_extract)
+    state.auto_extract = widgets.checkbox(f"every {state.auto_extract_seconds:.0f} s", state.auto_extract,
+                                          "extract again on a timer while training")
     if studio.extract_job.busy:
         imgui.text_disabled("extracting...")
     if extraction is not None:
-        imgui.text(f"step {extraction.step}: {len(extraction.curves.lines)} lines, "
+        layers = f" ({extraction.selection})" if extraction.selection else ""
+        imgui.text(f"step {extraction.step}{layers}: {len(extraction.curves.lines)} lines, "
                    f"{len(extraction.curves.beziers)} Beziers")
         if extraction.fscore:
             imgui.text("F " + "  ".join(f"{mm} mm {f:.1f}" for mm, f in extraction.fscore.items()))
-    imgui.text("Export")
+    if widgets.button("Export", "extract the latest snapshot once and write it in every checked format "
+                      "to <run>/exports/curves_step<N>.<format> (Ctrl+E)"):
+        state.request("export")
     for fmt in EXPORT_FORMATS:
         imgui.same_line()
-        if imgui.button(fmt.upper()):
-            state.request("export", format=fmt)
-    imgui.set_item_tooltip("extracts the latest snapshot and writes <run>/exports/")
+        state.export_formats[fmt] = widgets.checkbox(fmt.upper(), state.export_formats[fmt],
+                                                     f"Export writes {fmt.upper()}")
 
 
 def draw(studio, area: layout.Area) -> None:
@@ -154,8 +196,10 @@ def draw(studio, area: layout.Area) -> None:
 
 
 def draw_status(studio, area: layout.Area) -> None:
-    """One line: the last thing done, or the trainer's error."""
+    """One line: where help is, and the last thing done or the trainer's error."""
     if layout.begin("##status", area, imgui.WindowFlags_.no_title_bar | imgui.WindowFlags_.no_scrollbar):
+        imgui.text_disabled("F1: help |")
+        imgui.same_line()
         worker = studio.worker
         if worker is not None and worker.error:
             imgui.text_colored(ERROR_COLOR, f"trainer error: {worker.error}")

@@ -5,11 +5,14 @@ display is reported before anything heavy loads.
 
 from __future__ import annotations
 
+import ctypes
+import ctypes.util
 import time
 
 # imgui_bundle before glfw: it points glfw at the GLFW library it ships.
 from imgui_bundle import imgui  # isort: skip
 import glfw
+from edgedog.app import MIN_SIZE
 from edgedog.renderer.gl.context import GL_VERSION
 
 from edgedog.errors import EdgeDogError
@@ -36,9 +39,27 @@ def init_glfw() -> None:
         raise _no_window(errors[-1] if errors else "GLFW cannot start")
 
 
+def release_egl_thread() -> None:
+    """Leave no EGL context current on this thread.
+
+    glcontext's `release()` of a standalone EGL context (e.g. those that rendered the built-in
+    scene on first use) destroys it but leaves it current, and libglvnd then refuses any GLX
+    context on the same thread: GLFW's glXMakeCurrent fails with BadAccess and Xlib exits.
+    """
+    name = ctypes.util.find_library("EGL")
+    if name is None:
+        return  # no EGL here: nothing can be current
+    egl = ctypes.CDLL(name)
+    egl.eglGetCurrentContext.restype = egl.eglGetCurrentDisplay.restype = ctypes.c_void_p
+    if egl.eglGetCurrentContext():
+        egl.eglMakeCurrent.argtypes = [ctypes.c_void_p] * 4
+        egl.eglMakeCurrent(egl.eglGetCurrentDisplay(), None, None, None)
+
+
 def open_window(width: int, height: int):
     """A window of `width` x `height` screen coordinates with a current OpenGL 3.3 core context
     (GLFW must be initialised)."""
+    release_egl_thread()
     hints = ((glfw.CONTEXT_VERSION_MAJOR, GL_VERSION // 100),
              (glfw.CONTEXT_VERSION_MINOR, GL_VERSION // 10 % 10),
              (glfw.OPENGL_PROFILE, glfw.OPENGL_CORE_PROFILE), (glfw.OPENGL_FORWARD_COMPAT, True),
@@ -48,6 +69,7 @@ def open_window(width: int, height: int):
     window = glfw.create_window(width, height, TITLE, None, None)
     if not window:
         raise _no_window(f"no OpenGL {GL_VERSION / 100:.1f} core context")
+    glfw.set_window_size_limits(window, *MIN_SIZE, glfw.DONT_CARE, glfw.DONT_CARE)
     glfw.make_context_current(window)
     glfw.swap_interval(1)
     return window
@@ -74,9 +96,10 @@ class InputWatch:
         for install in (glfw.set_cursor_pos_callback, glfw.set_mouse_button_callback,
                         glfw.set_scroll_callback, glfw.set_key_callback, glfw.set_char_callback,
                         glfw.set_window_size_callback, glfw.set_window_focus_callback):
-            install(window, self._touched)
+            install(window, self.touch)
 
-    def _touched(self, *_event) -> None:
+    def touch(self, *_event) -> None:
+        """Count as input now (also for input that does not come through GLFW: a script's)."""
         self.last = time.perf_counter()
 
     @property

@@ -1,7 +1,10 @@
 """Curves from a snapshot, scored against the ground truth and exported, off the UI thread.
 
 The snapshot goes through `edgedog extract`'s own pipeline (filters, grouping, fitting) via a
-scratch run folder, so the studio's curves are the ones the command line would give.
+scratch run folder, so the studio's curves are the ones the command line would give. The
+snapshot may be a selection of a layered model's layers (those shown): as `edgedog train
+--layers` does for its selections, the projection filter then uses the maps of the finest
+layer selected.
 """
 
 from __future__ import annotations
@@ -14,11 +17,10 @@ from pathlib import Path
 from edgedog.curve_files import EdgeCurves, write_edges
 from edgedog.curves.config import ExtractConfig
 from edgedog.curves.extract import extract_run
+from edgedog.edges.cache import attach_edge_maps
 from edgedog.metrics import evaluate
 from edgedog.scenes import Scene
 from edgedog.train.export import write_primitives
-
-EXPORT_FORMATS = ("ply", "obj", "json")
 
 
 @dataclass(frozen=True)
@@ -30,6 +32,7 @@ class Extraction:
         counts: primitives left after each filter, chains, lines, Béziers.
         fscore: threshold in mm -> F-score in %, when the scene has ground truth and curves.
         written: the files exported with it.
+        selection: the layers extracted, e.g. 'L0+L1' ('' when the whole model).
     """
 
     step: int
@@ -38,17 +41,23 @@ class Extraction:
     counts: dict[str, int]
     fscore: dict[int, float] | None = None
     written: tuple[Path, ...] = field(default_factory=tuple)
+    selection: str = ""
 
 
-def export_path(run_dir: Path, step: int, fmt: str) -> Path:
-    """Where an export of the curves at `step` goes: <run>/exports/curves_step<step>.<fmt>."""
-    return run_dir / "exports" / f"curves_step{step:06d}.{fmt}"
+def export_path(run_dir: Path, step: int, fmt: str, selection: str = "") -> Path:
+    """Where an export of the curves at `step` goes: <run>/exports/curves_step<step>.<fmt>, or
+    curves_step<step>_<selection>.<fmt> for some of a layered model's layers."""
+    suffix = f"_{selection}" if selection else ""
+    return run_dir / "exports" / f"curves_step{step:06d}{suffix}.{fmt}"
 
 
 def extract_snapshot(snapshot, elapsed: float, scene: Scene, detector: str, run_dir: Path,
-                     formats: Sequence[str] = (), config: ExtractConfig = ExtractConfig()) -> Extraction:
-    """Extract curves from `snapshot`, score them when the scene has ground truth, and write
-    them in each of `formats` (see `export_path`)."""
+                     formats: Sequence[str] = (), config: ExtractConfig = ExtractConfig(),
+                     selection: str = "") -> Extraction:
+    """Extract curves from `snapshot` (the layers `selection` of a model, '' for all of it),
+    score them when the scene has ground truth, and write them in each of `formats` (see
+    `export_path`). `detector` names the maps of the projection filter."""
+    attach_edge_maps(scene, detector)  # a finished run's maps may not be loaded yet
     with tempfile.TemporaryDirectory(prefix="edgedog-studio-") as scratch:
         write_primitives(Path(scratch) / "primitives.ply", snapshot)
         result = extract_run(scratch, config, scene, detector)
@@ -56,5 +65,6 @@ def extract_snapshot(snapshot, elapsed: float, scene: Scene, detector: str, run_
     samples = result.curves.transformed(scene.world_to_gt).sample()
     if scene.ground_truth is not None and len(samples):  # curves all shorter than 5 mm give none
         fscore = evaluate(samples, scene.ground_truth.load()).fscore
-    written = tuple(write_edges(export_path(run_dir, snapshot.step, fmt), result.curves) for fmt in formats)
-    return Extraction(snapshot.step, elapsed, result.curves, result.counts, fscore, written)
+    written = tuple(write_edges(export_path(run_dir, snapshot.step, fmt, selection), result.curves)
+                    for fmt in formats)
+    return Extraction(snapshot.step, elapsed, result.curves, result.counts, fscore, written, selection)

@@ -1,8 +1,8 @@
 """The 2D inspectors of one training view, computed from a snapshot (never from live tensors).
 
 Side by side: the image, the pseudo-edge map, the current render of the training rasterizer,
-its depth, the pixel uncertainty Up (normalised Sobel magnitude of that depth) and the loss
-weight w(Up), exactly as `Trainer.step` computes them.
+its depth, the pixel uncertainty U (normalised Sobel magnitude of that depth) and the loss
+weight w(U), exactly as `Trainer.step` computes them.
 """
 
 from __future__ import annotations
@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 from edgedog.app.colors import colormap, with_alpha
+from edgedog.app.state import WEIGHTING_FORMULAS
 from edgedog.renderer.config import RasterConfig
 from edgedog.renderer.primitives import Primitives, RasterCamera
 from edgedog.renderer.rasterize import rasterize
@@ -19,8 +20,8 @@ from edgedog.renderer.rasterize import rasterize
 from edgedog.scenes import Scene
 from edgedog.train import losses
 
-NAMES = ("image", "edge map", "render", "depth", "Up", "w(Up)")
-"""The inspectors, in the order they are shown (w(Up) is labelled with its weighting)."""
+NAMES = ("image", "edge map", "render", "depth", "U", "w")
+"""The inspectors, in the order they are shown (w is labelled with its formula, e.g. w = exp(-U))."""
 
 
 @dataclass(frozen=True)
@@ -72,5 +73,5 @@ def inspect_view(snapshot, scene: Scene, view: int, detector: str | None, raster
         _scalar(NAMES[2], out.image[..., 0].numpy(), "gray", 0.0, 1.0),
         _scalar(NAMES[3], out.depth.numpy(), "viridis"),
         _scalar(NAMES[4], up.numpy(), "magma", 0.0, 1.0, note),
-        _scalar(f"{NAMES[5]} {weighting}", weight.numpy(), "magma", note=note),
+        _scalar(f"{NAMES[5]} = {WEIGHTING_FORMULAS[weighting]}", weight.numpy(), "magma", note=note),
     ]

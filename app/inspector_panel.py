@@ -1,9 +1,9 @@
-"""The inspectors panel: the selected training view's image, edge map, render, depth, Up and
-w(Up) side by side, each scalar map with its colour bar and range."""
+"""The inspectors panel: the selected training view's image, edge map, render, depth, U and
+w(U) side by side, each scalar map with its colour bar and range."""
 
 from __future__ import annotations
 
-from edgedog.app import layout
+from edgedog.app import layout, widgets
 from edgedog.app.inspection import NAMES as INSPECTOR_NAMES
 from imgui_bundle import imgui
 
@@ -34,9 +34,10 @@ def draw(studio, area: layout.Area) -> None:
     if layout.begin("Inspectors", area, imgui.WindowFlags_.no_scrollbar):
         state, views = studio.state, len(studio.session.scene)
         imgui.set_next_item_width(12 * imgui.get_font_size())
-        state.view = imgui.slider_int("training view", min(state.view, views - 1), 0, views - 1)[1]
+        state.view = widgets.slider_int("training view", min(state.view, views - 1), 0, views - 1,
+                                        "the view the inspectors show (keys 1 - 9 pick the first nine)")
         imgui.same_line()
-        if imgui.button("Snap 3D view"):
+        if widgets.button("Snap 3D view", "look through this view's camera in the 3D view"):
             state.request("snap")
         imgui.same_line()
         imgui.text_disabled("from the latest snapshot")

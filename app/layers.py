@@ -36,6 +36,20 @@ def visible_subset(snapshot, shown: Mapping[str, bool]):
                                layers=None if snapshot.layers is None else snapshot.layers[members])
 
 
+def selection(snapshot, shown: Mapping[str, bool]) -> str:
+    """The shown layers as `edgedog export --layers` names a selection ('L1', 'L0+L1'), or ''
+    when every layer is shown."""
+    layers = layer_members(snapshot)
+    names = [name for name in layers if shown.get(name, True)]
+    return "" if len(names) == len(layers) else "+".join(names)
+
+
+def finest(snapshot, shown: Mapping[str, bool]) -> int | None:
+    """The index of the highest layer shown (None when none is)."""
+    names = [name for name in layer_members(snapshot) if shown.get(name, True)]
+    return int(names[-1][1:]) if names else None
+
+
 def list_new_layers(shown: dict[str, bool], snapshot) -> None:
     """Add the snapshot's layers missing from a layer list `shown` (name -> shown), shown."""
     for name in layer_members(snapshot):

@@ -1,4 +1,6 @@
-"""Where the panels go: a fixed tiling of the window that follows its size and DPI scale.
+"""Where the panels go: a fixed tiling of the window that follows its size and DPI scale. The
+side panels take their full widths on a wide window and shares of a narrow one, so the 3D view
+keeps over a third of the width down to the smallest window (`edgedog.app.MIN_SIZE`).
 
     +----------+----------------------+---------+
     | controls |       3D view        |  plots  |
@@ -16,7 +18,11 @@ from dataclasses import dataclass
 from imgui_bundle import imgui
 
 CONTROLS_WIDTH, PLOTS_WIDTH = 330, 360
-"""In unscaled points (times the DPI scale)."""
+"""Widths on a wide window, in unscaled points (times the DPI scale)."""
+CONTROLS_MIN = 240
+"""The controls' width below which their labels would be cut (unscaled points)."""
+CONTROLS_SHARE, PLOTS_SHARE = 0.3, 0.22
+"""Shares of a narrow window's width."""
 INSPECTORS_SHARE = 0.36
 """Of the height under the 3D view and plots."""
 PANEL_FLAGS = imgui.WindowFlags_.no_move | imgui.WindowFlags_.no_resize | imgui.WindowFlags_.no_collapse
@@ -37,7 +43,8 @@ def studio_layout() -> dict[str, Area]:
     width, height = imgui.get_io().display_size
     scale = imgui.get_style().font_scale_dpi
     status = imgui.get_frame_height_with_spacing() + 2 * imgui.get_style().window_padding.y
-    controls, plots = CONTROLS_WIDTH * scale, PLOTS_WIDTH * scale
+    controls = min(CONTROLS_WIDTH * scale, max(CONTROLS_MIN * scale, CONTROLS_SHARE * width))
+    plots = min(PLOTS_WIDTH * scale, PLOTS_SHARE * width)
     body = height - status
     inspectors = round(INSPECTORS_SHARE * body)
     top = body - inspectors

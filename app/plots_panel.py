@@ -13,10 +13,13 @@ MARKERS = implot.Spec(marker=implot.Marker_.circle)
 
 def _plot(title: str, height: float, series: dict[str, tuple[np.ndarray, np.ndarray]],
           spec: implot.Spec | None = None) -> None:
-    """One plot of named (time, value) series, both axes fitted to the data."""
+    """One plot of named (time, value) series, both axes fitted to the data; the legend, when
+    there is one, sits outside the plot, above it."""
     flags = implot.Flags_.no_menus | (0 if len(series) > 1 else implot.Flags_.no_legend)
     if implot.begin_plot(title, imgui.ImVec2(-1, height), flags):
         implot.setup_axes("time (s)", "", AUTO_FIT, AUTO_FIT)
+        implot.setup_legend(implot.Location_.north,
+                            implot.LegendFlags_.outside | implot.LegendFlags_.horizontal)
         for label, (xs, ys) in series.items():
             xs, ys = (np.ascontiguousarray(values, np.float64) for values in (xs, ys))  # implot wants these
             implot.plot_line(label, xs, ys, spec)
@@ -28,8 +31,8 @@ def draw(studio, area: layout.Area) -> None:
         worker = studio.worker
         rows = np.zeros((0, 3)) if worker is None else worker.series()
         height = (imgui.get_content_region_avail().y - 2 * imgui.get_style().item_spacing.y) / 3
-        _plot("loss", height, {"loss": (rows[:, 0], rows[:, 1])})
-        _plot("primitives", height, {"primitives": (rows[:, 0], rows[:, 2])})
+        _plot(f"loss##{studio.run_token}", height, {"loss": (rows[:, 0], rows[:, 1])})
+        _plot(f"primitives##{studio.run_token}", height, {"primitives": (rows[:, 0], rows[:, 2])})
         if studio.session.ground_truth is None:
             imgui.text_disabled("no ground truth: no F-scores")
         else:
@@ -37,5 +40,6 @@ def draw(studio, area: layout.Area) -> None:
             thresholds = studio.fscores[0][1] if studio.fscores else {}
             series = {f"F {mm} mm": (times, np.array([f[mm] for _, f in studio.fscores], np.float64))
                       for mm in thresholds}
-            _plot("F-score of the curves (%)", height, series, MARKERS)
+            # Named per run: a new run's plot does not keep the last run's axes.
+            _plot(f"F-score of the curves (%)##{studio.run_token}", height, series, MARKERS)
     imgui.end()

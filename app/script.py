@@ -9,6 +9,11 @@ The script is JSON: {"report": "report.json", "actions": [...]}, each action one
         wait until every probe (Studio.probe) matches: a value, or [op, value] with op one of
         > >= < <= !=; fails the script after `timeout` seconds (default 10).
     {"mark": "name"}                                                  record the probes now
+    {"click": "reset view"}                 a left click on the widget of that label (last frame's)
+    {"drag": "3D view", "by": [dx, dy]}     a left drag from the widget's centre, in points, over
+                                            "frames" frames (default 8)
+    {"key": "space"}, {"key": "ctrl+o"}     a key press (imgui.Key names, with ctrl+ or shift+)
+Clicks, drags and keys go through imgui's input queue, as the mouse and keyboard's do.
 A failed expectation closes the window; the report (probes, failure, closing time) is written
 when the window closes and the command exits 1 if the script failed.
 """
@@ -18,7 +23,11 @@ from __future__ import annotations
 import json
 import operator
 import time
+from collections.abc import Callable
 from pathlib import Path
+
+from edgedog.app import widgets
+from imgui_bundle import imgui
 
 from edgedog.errors import InputError
 from edgedog.files import atomic_write_json, read_json
@@ -26,6 +35,9 @@ from edgedog.files import atomic_write_json, read_json
 COMPARISONS = {">": operator.gt, ">=": operator.ge, "<": operator.lt, "<=": operator.le, "!=": operator.ne}
 DEFAULT_TIMEOUT = 10.0
 FLOAT_TOLERANCE = 1e-6
+DRAG_STEPS = 8
+"""Mouse moves a scripted drag is cut into."""
+MODIFIERS = {"ctrl": imgui.Key.mod_ctrl, "shift": imgui.Key.mod_shift}
 
 
 def matches(actual, expected) -> bool:
@@ -51,6 +63,47 @@ def assign(root, path: str, value) -> None:
         raise AttributeError(f"the UI state has no {path!r}")
 
 
+def _mouse_move(x: float, y: float) -> Callable[[], None]:
+    return lambda: imgui.get_io().add_mouse_pos_event(x, y)
+
+
+def _mouse_button(down: bool) -> Callable[[], None]:
+    return lambda: imgui.get_io().add_mouse_button_event(imgui.MouseButton_.left, down)
+
+
+def _both(first: Callable[[], None], second: Callable[[], None]) -> Callable[[], None]:
+    """Both events in one frame's batch (imgui's input queue still takes them a frame apart)."""
+    return lambda: (first(), second())
+
+
+def click(x: float, y: float) -> list[Callable[[], None]]:
+    """The frames of a left click at (x, y) points: the pointer comes first, as a mouse's does
+    (imgui gives hover to an item a frame after the pointer reaches it)."""
+    return [_mouse_move(x, y), _both(_mouse_button(True), _mouse_button(False))]
+
+
+def drag(start: tuple[float, float], by: list[float], frames: int = DRAG_STEPS) -> list[Callable[[], None]]:
+    """The frames of a left drag from `start` by (dx, dy) points, moving over `frames` frames."""
+    moves = [_mouse_move(start[0] + by[0] * step / frames, start[1] + by[1] * step / frames)
+             for step in range(1, frames + 1)]
+    return [_mouse_move(*start), _mouse_button(True), *moves, _mouse_button(False)]
+
+
+def press(chord: str) -> list[Callable[[], None]]:
+    """The frames of a key press, e.g. "space", "1", "ctrl+o" (ValueError for an unknown name)."""
+    *modifiers, name = chord.lower().split("+")
+    key = getattr(imgui.Key, f"_{name}" if name.isdigit() else name, None)
+    if key is None or any(m not in MODIFIERS for m in modifiers):
+        raise ValueError(f"unknown key {chord!r}")
+
+    def send() -> None:  # imgui takes the release a frame after the press
+        for down in (True, False):
+            for held in [*(MODIFIERS[m] for m in modifiers), key]:
+                imgui.get_io().add_key_event(held, down)
+
+    return [send]
+
+
 class ScriptDriver:
     """Runs a script's actions in order, one or more per frame."""
 
@@ -62,6 +115,10 @@ class ScriptDriver:
         self.failure: str | None = None
         self.log: list[dict] = []
         self.marks: dict[str, dict] = {}
+        self._input: list[Callable[[], None]] = []
+        """The input events of the action under way, one batch per frame."""
+        self.sent_input = False
+        """Whether the last tick sent input (the window then runs at its interactive rate)."""
         self._origin = self._since = clock()
 
     @classmethod
@@ -77,6 +134,7 @@ class ScriptDriver:
 
     def tick(self, studio) -> None:
         """Run every action that is due; stop at one that is still waiting."""
+        self.sent_input = False
         while not self.finished:
             action = self.actions[self.index]
             try:
@@ -89,8 +147,8 @@ class ScriptDriver:
             self.log.append({"action": action, "at": round(self.clock() - self._origin, 3)})
             self.index += 1
             self._since = self.clock()
-            if "request" in action:
-                return  # one request per frame: a screenshot shows the frame as it was asked for
+            if action.keys() & {"request", "click", "drag", "key"}:
+                return  # one per frame: a screenshot shows the frame as it was asked for
 
     def _run(self, action: dict, studio) -> bool:
         waited = self.clock() - self._since
@@ -104,6 +162,8 @@ class ScriptDriver:
             args = {key: value for key, value in action.items() if key != "request"}
             studio.state.request(action["request"], **args)
             return True
+        if action.keys() & {"click", "drag", "key"}:
+            return self._send_input(action)
         if "mark" in action:
             self.marks[action["mark"]] = {"at": self.clock() - self._origin, **studio.probe()}
             return True
@@ -114,6 +174,20 @@ class ScriptDriver:
                 self._fail(studio, f"action {self.index}: expected {action['expect']}, got {missed}")
             return not missed
         raise ValueError("unknown action")
+
+    def _send_input(self, action: dict) -> bool:
+        """Feed the action's next frame of input events; True once all are sent."""
+        if not self._input:
+            if "click" in action:
+                self._input = click(*widgets.center(action["click"]))
+            elif "drag" in action:
+                frames = action.get("frames", DRAG_STEPS)
+                self._input = drag(widgets.center(action["drag"]), action["by"], frames)
+            else:
+                self._input = press(action["key"])
+        self._input.pop(0)()
+        self.sent_input = True
+        return not self._input
 
     def _fail(self, studio, message: str) -> None:
         self.failure = message

@@ -14,6 +14,9 @@ from typing import Any
 from edgedog.train.config import TrainConfig, Weighting, with_epochs
 
 WEIGHTINGS: tuple[str, ...] = typing.get_args(Weighting)
+WEIGHTING_FORMULAS = {"one": "1", "exp_neg": "exp(-U)", "one_minus": "1 - U", "up": "U", "exp": "exp(U)"}
+"""How the UI names each weighting w(U) of the pixel uncertainty U (the paper's Table 4)."""
+EXPORT_FORMATS = ("ply", "obj", "json")
 KERNELS = ("dog", "gaussian")
 COLOR_MODES = ("white", "opacity", "DoG a", "DoG t")
 """What the splats are coloured by: nothing, their opacity, or the inner scale a or the
@@ -38,6 +41,8 @@ class RestartSettings:
     kernel: str
     pixel_uncertainty: bool
     primitive_uncertainty: bool
+    layers: int = 1
+    """Multi-granularity levels L0 .. L<layers - 1> (`edgedog train --layers`); 1: one layer."""
 
     @classmethod
     def from_config(cls, preset: str, config: TrainConfig) -> RestartSettings:
@@ -70,8 +75,10 @@ class Display:
 
 @dataclass(frozen=True)
 class Request:
-    """An action asked for: "open" (path), "start", "pause", "resume", "restart", "extract",
-    "export" (format), "snap" (to the selected view), "screenshot" (path), "close"."""
+    """An action asked for: "open" (path; none: the folder browser), "start", "pause", "resume",
+    "restart", "extract", "export" (formats, or one format; default the checked ones),
+    "snap" (to the selected view), "reset_view", "help" (show or hide), "screenshot" (path),
+    "close"."""
 
     name: str
     args: dict[str, Any] = field(default_factory=dict)
@@ -89,6 +96,9 @@ class UIState:
     auto_extract: bool = False
     """Extract curves from the latest snapshot every `auto_extract_seconds`."""
     auto_extract_seconds: float = 20.0
+    export_formats: dict[str, bool] = field(default_factory=lambda: dict.fromkeys(EXPORT_FORMATS, True))
+    """The formats one click on Export writes (all from the same snapshot)."""
+    show_help: bool = False
     status: str = ""
     """The status line: the last thing done (e.g. the path written)."""
     requests: list[Request] = field(default_factory=list)

@@ -5,25 +5,30 @@ the panels. Window-independent: `window.py` owns GLFW, imgui's backends and the 
 
 from __future__ import annotations
 
+import sys
 import time
 from pathlib import Path
 
 import moderngl
-from edgedog.app import controls_panel, inspector_panel, layout, plots_panel, view_panel
+from edgedog.app import controls_panel, inspector_panel, layout, plots_panel, shortcuts, view_panel, widgets
 from edgedog.app.colors import COLORMAPS, colorbar
+from edgedog.app.display import TITLE
 from edgedog.app.extraction import Extraction, extract_snapshot
+from edgedog.app.folder_dialog import FolderDialog
 from edgedog.app.inspection import NAMES as INSPECTOR_NAMES
 from edgedog.app.inspection import Inspector, inspect_view
 from edgedog.app.jobs import BackgroundJob, Done
-from edgedog.app.layers import visible_subset
+from edgedog.app.layers import finest, layer_members, selection, visible_subset
+from edgedog.app.saved_run import read_extraction
 from edgedog.app.session import Session
-from edgedog.app.state import LiveSettings, Request, UIState
+from edgedog.app.state import EXPORT_FORMATS, LiveSettings, Request, UIState
 from edgedog.app.textures import ImageTexture
 from edgedog.app.view3d import View3D
-from edgedog.app.worker import FINISHED, Published, TrainingWorker
-from imgui_bundle import portable_file_dialogs as pfd
+from edgedog.app.worker import FINISHED, TRAINING, Published, TrainingWorker
 
+from edgedog.curve_files import EdgeCurves
 from edgedog.errors import EdgeDogError
+from edgedog.train.layered import LayeredRun
 
 INSPECT_EVERY = 1.0
 """Seconds between two inspector renders while training (they share the CPU with it)."""
@@ -37,7 +42,7 @@ class Studio:
     Attributes:
         session: the scene and its runs; state: the UI state; view: the 3D view.
         inspectors: the latest inspector images; extraction: the latest curves.
-        fscores: (elapsed, {mm: F}) per scored extraction of the current run.
+        fscores: (elapsed, {mm: F}) per scored extraction of the current run's whole model.
         exports: every file exported in this window; stop_seconds: how long closing took.
     """
 
@@ -51,7 +56,8 @@ class Studio:
             texture.set(colorbar(name))
         self.exports: list[Path] = []
         self.stop_seconds: float | None = None
-        self._dialog = None
+        self.frames = 0
+        self.dialog: FolderDialog | None = None
         self._open(session)
 
     # --- sessions and runs
@@ -61,6 +67,12 @@ class Studio:
         scene = session.scene
         self.view.set_scene(scene.cameras, scene.bounds, session.ground_truth)
         self._reset_run()
+        if isinstance(session.resume, LayeredRun):
+            self.state.restart.layers = len(session.resume.levels)
+        saved = session.saved
+        if saved is not None and saved.extraction is not None:  # a finished run shows its curves
+            self._show_extraction(saved.extraction)
+            self._extracted = (*self.run_token, saved.latest.version)
 
     def _reset_run(self) -> None:
         self.inspectors: list[Inspector] = []
@@ -75,7 +87,7 @@ class Studio:
     def _start(self, fresh: bool) -> None:
         restart = self.state.restart
         config = restart.apply(self.session.base_config(restart.preset), self.state.live)
-        self.session.start(restart.preset, config, fresh=fresh)
+        self.session.start(restart.preset, config, fresh=fresh, layers=restart.layers)
         self._reset_run()
         self.state.status = f"training into {self.session.run_dir}"
 
@@ -86,7 +98,13 @@ class Studio:
 
     @property
     def worker(self) -> TrainingWorker | None:
+        """The current run's worker, or the finished run opened (read like one)."""
         return self.session.worker
+
+    @property
+    def training(self) -> bool:
+        """Whether a run is training now (the window then caps its frame rate lower)."""
+        return self.worker is not None and self.worker.phase == TRAINING
 
     @property
     def latest(self) -> Published | None:
@@ -95,14 +113,16 @@ class Studio:
     # --- one frame
     def frame(self) -> list[Request]:
         """Update and draw everything; returns the requests only the window can act on."""
+        self.frames += 1
+        shortcuts.handle_keys(self)
         window_requests = [r for r in self.state.take_requests() if not self._handle(r)]
-        self._poll_dialog()
+        self.session.reap()
         self._sync_live()
         self._poll_jobs()
         latest = self.latest
         info = None if self.worker is None else self.worker.info
         self.view.sync(latest, None if info is None else info.raster, self.state.display, self.state.view,
-                       None if self.extraction is None else self.extraction.curves)
+                       self.shown_curves)
         self._refresh_inspectors(latest)
         self._refresh_curves(latest)
         self._draw()
@@ -124,28 +144,46 @@ class Studio:
             elif request.name == "extract":
                 self._extract_asked = True
             elif request.name == "export":
-                self._pending_exports.append(request.args["format"])
+                self._request_export(request.args)
             elif request.name == "snap":
                 self.view.snap(self.state.view)
+            elif request.name == "reset_view":
+                self.view.reset()
+            elif request.name == "help":
+                self.state.show_help = not self.state.show_help
         except EdgeDogError as error:
             self.state.status = f"error: {error}"
         return True
 
     def _request_open(self, path: str | None) -> None:
-        """Open `path`, or ask for a folder with the system's dialog when None."""
+        """Open `path`, or show the folder browser when None."""
         if path is None:
-            self._dialog = pfd.select_folder("Open a scene or run folder", str(self.session.opened))
+            self.dialog = FolderDialog(self.session.opened)
             return
         session = Session.open(path, self.runs_root, self.state.restart.preset, self.session.overrides)
         self.session.stop()
         self._open(session)
         self.state.status = f"opened {session.opened}"
 
-    def _poll_dialog(self) -> None:
-        if self._dialog is not None and self._dialog.ready(0):
-            path, self._dialog = self._dialog.result(), None
-            if path:
-                self.state.request("open", path=path)
+    def _request_export(self, args: dict) -> None:
+        """Queue one export of the latest snapshot in the formats asked for (default: the checked
+        ones); every format of one request comes from the same extraction."""
+        formats = args.get("formats") or ([args["format"]] if "format" in args else
+                                          [fmt for fmt in EXPORT_FORMATS if self.state.export_formats[fmt]])
+        if not formats:
+            self.state.status = "nothing to export: check a format (PLY, OBJ, JSON)"
+        for fmt in formats:
+            if fmt not in self._pending_exports:
+                self._pending_exports.append(fmt)
+
+    def _draw_dialog(self) -> None:
+        if self.dialog is None:
+            return
+        chosen = self.dialog.draw()
+        if chosen is not None:
+            self.state.request("open", path=str(chosen))
+        if not self.dialog.open:
+            self.dialog = None
 
     def _sync_live(self) -> None:
         """Send changed live settings to the worker (applied at its next step boundary)."""
@@ -178,21 +216,27 @@ class Studio:
         if done.error:
             self.state.status = f"extraction: {done.error}"
             return
-        self.extraction = extraction = done.value
-        if extraction.fscore is not None:
+        self._show_extraction(done.value)
+
+    def _show_extraction(self, extraction: Extraction) -> None:
+        self.extraction = extraction
+        if extraction.fscore is not None and not extraction.selection:  # the plot follows the whole model
             self.fscores.append((extraction.elapsed, extraction.fscore))
         self.exports += extraction.written
         counts = f"{len(extraction.curves.lines)} lines, {len(extraction.curves.beziers)} Beziers"
         written = f"; wrote {', '.join(map(str, extraction.written))}" if extraction.written else ""
-        self.state.status = f"curves at step {extraction.step}: {counts}{written}"
+        layers = f" ({extraction.selection})" if extraction.selection else ""
+        self.state.status = f"curves at step {extraction.step}{layers}: {counts}{written}"
 
     def _refresh_inspectors(self, latest: Published | None) -> None:
         """Re-render the inspectors when the snapshot, the view or the weighting changed."""
         info = None if self.worker is None else self.worker.info
         scene = self.session.scene
-        detector = info.detector if info else (scene.detectors[0] if scene.detectors else None)
-        weighting = self.state.live.weighting
         shown = self.state.display.layers
+        detector = info.detector if info else (scene.detectors[0] if scene.detectors else None)
+        if info is not None and latest is not None:  # the maps of the finest layer shown
+            detector = self.worker.detectors.get(finest(latest.snapshot, shown), detector)
+        weighting = self.state.live.weighting
         key = (*self.run_token, None if latest is None else latest.version, self.state.view, weighting,
                detector, tuple(sorted(name for name, on in shown.items() if on)))
         now = time.monotonic()
@@ -207,31 +251,71 @@ class Studio:
                                                                weighting, pixel_uncertainty)):
             self._inspected, self._last_inspect = key, now
 
+    @property
+    def selection(self) -> str | None:
+        """The layers shown ('' all of them, None none), as extractions name their selection."""
+        latest, shown = self.latest, self.state.display.layers
+        if latest is None or finest(latest.snapshot, shown) is None:
+            return None
+        return selection(latest.snapshot, shown)
+
+    @property
+    def shown_curves(self) -> EdgeCurves | None:
+        """The curves of the layers shown (none while those of another selection are all there is)."""
+        extraction = self.extraction
+        if extraction is None or extraction.selection != self.selection:
+            return None
+        return extraction.curves
+
     def _refresh_curves(self, latest: Published | None) -> None:
-        """Extract when asked (exports), on the auto timer, and once for a finished run's result."""
-        worker = self.worker
-        if latest is None or worker is None or worker.info is None or self.extract_job.busy:
+        """Extract when asked (exports), on the auto timer, once for a finished run's result, and
+        when the layers shown change; always the layers shown."""
+        worker, chosen = self.worker, self.selection
+        if latest is None or worker is None or worker.info is None or self.extract_job.busy or chosen is None:
             return
         now = time.monotonic()
         asked = self._extract_asked or bool(self._pending_exports)
         timer = self.state.auto_extract and now - self._last_extract >= self.state.auto_extract_seconds
-        key = (*self.run_token, latest.version)
-        if not (asked or ((timer or worker.phase == FINISHED) and key != self._extracted)):
+        other_layers = self.extraction is not None and self.extraction.selection != chosen
+        key = (*self.run_token, latest.version, chosen)
+        if not (asked or ((timer or worker.phase == FINISHED or other_layers) and key != self._extracted)):
             return
-        formats = self._pending_exports
-        scene, info = self.session.scene, worker.info
-        self.extract_job.submit(key, lambda: extract_snapshot(latest.snapshot, latest.elapsed, scene,
-                                                              info.detector, info.run_dir, formats))
-        self._pending_exports, self._extract_asked = [], False
+        if worker.phase == FINISHED and not asked and not chosen:  # the run's own final curves
+            extraction = read_extraction(self.session.curves_folder, latest.snapshot.step, latest.elapsed)
+            if extraction is not None:
+                self._show_extraction(extraction)
+                self._extracted = key
+                return
+        self._submit_extraction(key, latest, chosen)
         self._extracted, self._last_extract = key, now
 
+    def _submit_extraction(self, key: tuple, latest: Published, chosen: str) -> None:
+        """Extract the layers `chosen` of the latest snapshot, exporting the formats asked for."""
+        shown = self.state.display.layers
+        snapshot = visible_subset(latest.snapshot, shown) if chosen else latest.snapshot
+        # As `edgedog train --layers`: the projection filter of a selection uses its finest layer's maps.
+        detector = self.worker.detectors.get(finest(latest.snapshot, shown), self.worker.info.detector)
+        formats, scene, run_dir = self._pending_exports, self.session.scene, self.session.run_dir
+        self.extract_job.submit(key, lambda: extract_snapshot(snapshot, latest.elapsed, scene, detector,
+                                                              run_dir, formats, selection=chosen))
+        self._pending_exports, self._extract_asked = [], False
+
     def _draw(self) -> None:
+        widgets.RECTS.clear()
         areas = layout.studio_layout()
         controls_panel.draw(self, areas["controls"])
         view_panel.draw(self, areas["view"])
         plots_panel.draw(self, areas["plots"])
         inspector_panel.draw(self, areas["inspectors"])
         controls_panel.draw_status(self, areas["status"])
+        shortcuts.draw_help(self)
+        self._draw_dialog()
+
+    @property
+    def title(self) -> str:
+        """The window's title: the scene and the run shown."""
+        run = self.session.run_dir
+        return f"{self.session.scene_path.name} - {run.name if run else 'no run'} - {TITLE}"
 
     # --- probes and closing
     def probe(self) -> dict:
@@ -246,16 +330,32 @@ class Studio:
                  "inspectors": len(self.inspectors), "exports": len(self.exports),
                  "export_paths": [str(path) for path in self.exports],
                  "fscores": len(self.fscores), "status": self.state.status,
-                 "run_dir": None if worker is None or worker.info is None else str(worker.info.run_dir)}
+                 "run_dir": None if worker is None or worker.info is None else str(worker.info.run_dir),
+                 "curves": None if self.extraction is None else self.extraction.curves.num_curves,
+                 "curves_selection": None if self.extraction is None else self.extraction.selection,
+                 "layers": None if self.latest is None else sorted(layer_members(self.latest.snapshot)),
+                 "series": 0 if worker is None else len(worker.series()),
+                 "loss": None if self.latest is None else self.latest.snapshot.loss,
+                 "view_at_home": self.view.at_home, "view_index": self.state.view,
+                 "frames": self.frames, "view_renders": self.view.renders, "cpu_seconds": time.process_time(),
+                 "help": self.state.show_help,
+                 "dialog": None if self.dialog is None else str(self.dialog.path),
+                 "title": self.title}
         controls = None if worker is None else worker.trainer_controls()
         facts.update({f"controls.{name}": value for name, value in (controls or {}).items()})
         return facts
 
     def close(self) -> None:
-        """Stop the run (within a second: it keeps its last checkpoint) and free GL objects."""
+        """Stop the run (within a second once it trains: it keeps its last checkpoint), wait for
+        what cannot be interrupted (a trainer's set-up, an extraction), and free GL objects."""
         started = time.perf_counter()
-        self.session.stop(1.0)
+        if not self.session.stop(1.0):
+            print("edgedog: waiting for the run's set-up to finish (it cannot be interrupted)...",
+                  file=sys.stderr, flush=True)
+            self.session.stop(None)
         self.stop_seconds = time.perf_counter() - started
+        for job in (self.inspector_job, self.extract_job):
+            job.wait(None)
         self.view.release()
         for texture in [*self.textures, *self.colorbars.values()]:
             texture.release()

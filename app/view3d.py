@@ -2,12 +2,18 @@
 primitives, drawn by the GL renderer into an offscreen target that the window shows.
 
 `sync` brings the GPU side up to date each frame, uploading only what changed (the splats once
-per snapshot version); `render` re-draws the target only when the picture would change.
+per snapshot version); `render` re-draws the target only when the picture would change. While
+the camera moves the picture is drawn at a reduced resolution (with a software OpenGL, drawing
+costs CPU time the training thread needs), and at full resolution once it stops.
 """
 
 from __future__ import annotations
 
+import ctypes
+import ctypes.util
+import time
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import moderngl
 import numpy as np
@@ -37,6 +43,10 @@ FILL = 0.8
 ORBIT_PER_PIXEL = 0.006
 """Radians of orbit per pixel dragged."""
 ZOOM_PER_NOTCH = 0.9
+MOVING_SCALE = 0.5
+"""While the camera moves, the view is drawn at this share of its width and height."""
+SETTLE_SECONDS = 0.25
+"""The camera counts as moving this long after the last gesture."""
 CAMERA_COLOR, SELECTED_COLOR = (0.45, 0.5, 0.6), (1.0, 0.8, 0.2)
 GT_COLOR, PRUNED_COLOR = (0.2, 0.85, 0.35), (1.0, 0.15, 0.1)
 
@@ -64,6 +74,55 @@ def splat_values(splats, mode: str, raster: RasterConfig) -> np.ndarray | None:
     return None
 
 
+def _gl_finish():
+    """OpenGL's glFinish through ctypes, which lets go of the GIL while it waits (None without a
+    GL library)."""
+    name = ctypes.util.find_library("OpenGL") or ctypes.util.find_library("GL")
+    return None if name is None else ctypes.CDLL(name).glFinish
+
+
+GL_FINISH = _gl_finish()
+
+
+def finish_without_gil() -> None:
+    """Wait for the GL commands issued so far without holding the GIL. A software OpenGL draws
+    when its commands are flushed, often inside the next call that needs the result (imgui's
+    render, which holds the GIL): waiting here lets the training thread run meanwhile."""
+    if GL_FINISH is not None:
+        GL_FINISH()
+
+
+def scaled_camera(camera: Camera, scale: float) -> Camera:
+    """`camera` for an image `scale` times as wide and high (pixel centres kept in place)."""
+    width, height = max(round(camera.width * scale), 1), max(round(camera.height * scale), 1)
+    sx, sy = width / camera.width, height / camera.height
+    K = np.diag([sx, sy, 1.0]) @ camera.K
+    K[0, 2], K[1, 2] = sx * (camera.K[0, 2] + 0.5) - 0.5, sy * (camera.K[1, 2] + 0.5) - 0.5
+    return Camera(K=K, w2c=camera.w2c, width=width, height=height)
+
+
+@dataclass
+class Canvas:
+    """A render target and the 8-bit copy of it that the window shows (sampling the float target
+    at every frame would cost more than copying it once per render)."""
+
+    target: OffscreenTarget
+    texture: moderngl.Texture
+    framebuffer: moderngl.Framebuffer
+
+    @classmethod
+    def make(cls, ctx: moderngl.Context, width: int, height: int) -> Canvas:
+        texture = ctx.texture((width, height), 4)
+        texture.filter = moderngl.LINEAR, moderngl.LINEAR  # a reduced picture is shown magnified
+        texture.swizzle = "RGB1"  # shown opaque: premultiplied colour over black
+        return cls(OffscreenTarget(ctx, width, height), texture, ctx.framebuffer([texture]))
+
+    def release(self) -> None:
+        for obj in (self.framebuffer, self.texture):
+            obj.release()
+        self.target.release()
+
+
 class View3D:
     """The view camera, the renderers and the target they draw into.
 
@@ -75,7 +134,9 @@ class View3D:
     def __init__(self, ctx: moderngl.Context, width: int = 640, height: int = 480):
         self.ctx = ctx
         self.splats, self.lines = SplatRenderer(ctx), LineRenderer(ctx)
-        self.target = self._make_target(width, height)
+        self._canvases: dict[float, Canvas] = {}
+        """Scale -> the canvas at that share of the view's size (full, and while moving)."""
+        self._scale, self._moved = 1.0, -np.inf
         self.camera = ViewCamera.looking_at((0, -3, 0), (0, 0, 0), (0, 0, 1), width, height)
         self.cameras: list[Camera] = []
         self.centre, self.drawn, self.color_range = np.zeros(3), 0, None
@@ -86,15 +147,31 @@ class View3D:
         self._splat_subset = None
         self._curves: EdgeCurves | None = None
         self._uploads = 0
+        self.renders = 0
+        """How many times the target was drawn (it is only when the picture changes)."""
 
-    def _make_target(self, width: int, height: int) -> OffscreenTarget:
-        target = OffscreenTarget(self.ctx, width, height)
-        target.texture.swizzle = "RGB1"  # shown opaque: premultiplied colour over black
-        return target
+    def _canvas(self, scale: float) -> Canvas:
+        if scale not in self._canvases:
+            size = scaled_camera(self.camera.camera(), scale)
+            self._canvases[scale] = Canvas.make(self.ctx, size.width, size.height)
+        return self._canvases[scale]
+
+    @property
+    def target(self) -> OffscreenTarget:
+        """What the last render drew into."""
+        return self._canvas(self._scale).target
 
     @property
     def texture(self) -> moderngl.Texture:
-        return self.target.texture
+        """The picture to show (its row 0 is the bottom)."""
+        return self._canvas(self._scale).texture
+
+    @property
+    def moving(self) -> bool:
+        return time.monotonic() - self._moved < SETTLE_SECONDS
+
+    def _moves(self) -> None:
+        self._moved, self._dirty = time.monotonic(), True
 
     # --- what is shown
     def set_scene(self, cameras: Sequence[Camera], bounds: np.ndarray, ground_truth: np.ndarray | None
@@ -123,7 +200,13 @@ class View3D:
         eye = self.centre + distance * direction / np.linalg.norm(direction)
         self.camera = ViewCamera.looking_at(eye, self.centre, up, self.camera.width, self.camera.height,
                                             FIELD_OF_VIEW)
+        self.home = self.camera.center.copy()
         self._dirty = True
+
+    @property
+    def at_home(self) -> bool:
+        """Whether the view looks from where `reset` put it."""
+        return bool(np.allclose(self.camera.center, self.home, atol=1e-6))
 
     def sync(self, published: Published | None, raster: RasterConfig | None, display: Display, view: int,
              curves: EdgeCurves | None) -> None:
@@ -183,9 +266,8 @@ class View3D:
     def resize(self, width: int, height: int) -> None:
         """Follow the panel's size in framebuffer pixels."""
         width, height = max(int(width), 1), max(int(height), 1)
-        if (width, height) != (self.target.width, self.target.height):
-            self.target.release()
-            self.target = self._make_target(width, height)
+        if (width, height) != (self.camera.width, self.camera.height):
+            self._release_canvases()
             self.camera.resize(width, height)
             self._dirty = True
 
@@ -193,16 +275,16 @@ class View3D:
         """Turn around the target by a drag of (dx, dy) pixels: the scene turns with the mouse
         (dragging down lifts the camera to look down on it)."""
         self.camera.orbit(-dx * ORBIT_PER_PIXEL, -dy * ORBIT_PER_PIXEL)
-        self._dirty = True
+        self._moves()
 
     def pan(self, dx: float, dy: float) -> None:
         self.camera.pan(dx, dy)
-        self._dirty = True
+        self._moves()
 
     def zoom(self, notches: float) -> None:
         """Mouse-wheel notches: positive moves closer."""
         self.camera.zoom(ZOOM_PER_NOTCH ** notches)
-        self._dirty = True
+        self._moves()
 
     def snap(self, view: int) -> None:
         """Look through training camera `view`, orbiting around the scene centre afterwards."""
@@ -212,18 +294,30 @@ class View3D:
 
     # --- drawing
     def render(self) -> bool:
-        """Re-draw the target if anything changed since the last render; returns whether it did."""
-        if not self._dirty:
+        """Re-draw the picture if anything changed since the last render, or at full resolution
+        once the camera stopped; returns whether it did."""
+        scale = MOVING_SCALE if self.moving else 1.0
+        if not self._dirty and scale == self._scale:
             return False
-        self.target.use()
-        self.target.clear()
-        view = self.camera.camera()
+        self._scale = scale
+        canvas = self._canvas(scale)
+        canvas.target.use()
+        canvas.target.clear()
+        view = scaled_camera(self.camera.camera(), scale)
         self.drawn = self.splats.render(view) if self._show_splats else 0
         self.lines.render(view)
+        self.ctx.copy_framebuffer(canvas.framebuffer, canvas.target.framebuffer)
+        finish_without_gil()
         self._dirty = False
+        self.renders += 1
         return True
+
+    def _release_canvases(self) -> None:
+        for canvas in self._canvases.values():
+            canvas.release()
+        self._canvases = {}
 
     def release(self) -> None:
         self.splats.release()
         self.lines.release()
-        self.target.release()
+        self._release_canvases()

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from edgedog.app import layout
+from edgedog.app import layout, widgets
 from edgedog.app.textures import texture_ref
 from edgedog.app.view3d import View3D
 from imgui_bundle import imgui
@@ -36,7 +36,9 @@ def draw(studio, area: layout.Area) -> None:
             scale = imgui.get_io().display_framebuffer_scale  # HiDPI: pixels per point
             view.resize(round(size.x * scale.x), round(size.y * scale.y))
             origin = imgui.get_cursor_screen_pos()
+            imgui.set_next_item_allow_overlap()  # the buttons drawn over the view get their clicks
             imgui.invisible_button("##view3d", size, VIEW_BUTTONS)
+            widgets.RECTS["3D view"] = (origin.x, origin.y, origin.x + size.x, origin.y + size.y)
             _mouse(view, scale)
             view.render()
             corner = imgui.ImVec2(origin.x + size.x, origin.y + size.y)
@@ -47,8 +49,9 @@ def draw(studio, area: layout.Area) -> None:
             imgui.set_cursor_screen_pos(imgui.ImVec2(origin.x + padding.x, origin.y + padding.y))
             imgui.text(f"{view.drawn} splats drawn")
             imgui.same_line()
-            if imgui.small_button("reset view"):
-                view.reset()
+            if widgets.button("reset view", "look at the scene from the side, as at the start (r)",
+                              small=True):
+                studio.state.request("reset_view")
             imgui.text_disabled(HELP)
     imgui.end()
     imgui.pop_style_var()

@@ -20,11 +20,12 @@ from edgedog.app.session import Session
 from edgedog.app.studio import Studio
 from edgedog.renderer.gl.context import GL_VERSION, window_context
 
-ACTIVE_FPS, IDLE_FPS = 30, 2
-"""Frame rates while the user interacts, and otherwise (the rate snapshots come at, see
-worker.PUBLISH_EVERY). With a software OpenGL a frame costs tens of milliseconds of CPU, much
-of it holding the GIL the training thread needs: idle frames are kept rare so that training
-keeps its speed, and input wakes the loop at once."""
+ACTIVE_FPS, TRAINING_FPS, IDLE_FPS = 30, 20, 2
+"""Frame rates while the user interacts (TRAINING_FPS when a run trains meanwhile), and otherwise
+(the rate snapshots come at, see worker.PUBLISH_EVERY). With a software OpenGL a frame costs
+tens of milliseconds of CPU, much of it holding the GIL the training thread needs: idle frames
+are kept rare and interactive ones capped so that training keeps most of its speed, and input
+wakes the loop at once (python -m edgedog.app.benchmark measures both rates)."""
 BACKGROUND = (0.08, 0.08, 0.09, 1.0)
 
 
@@ -40,13 +41,16 @@ def save_screenshot(ctx: moderngl.Context, path: Path, width: int, height: int) 
 
 def _loop(window, ctx: moderngl.Context, studio: Studio, driver: ScriptDriver | None, watch: InputWatch
           ) -> None:
+    title = None
     while not glfw.window_should_close(window):
         started = time.perf_counter()
         glfw.poll_events()
-        if driver is not None:
-            driver.tick(studio)
         imgui.backends.opengl3_new_frame()
         imgui.backends.glfw_new_frame()
+        if driver is not None:  # after the backend's input: the script's clicks and keys come last
+            driver.tick(studio)
+            if driver.sent_input:
+                watch.touch()
         imgui.new_frame()
         requests = studio.frame()
         imgui.render()
@@ -60,9 +64,13 @@ def _loop(window, ctx: moderngl.Context, studio: Studio, driver: ScriptDriver | 
                 save_screenshot(ctx, Path(request.args["path"]), width, height)
             elif request.name == "close":
                 glfw.set_window_should_close(window, True)
+        if studio.title != title:
+            title = studio.title
+            glfw.set_window_title(window, title)
         glfw.swap_buffers(window)
-        time.sleep(max(0.0, 1 / ACTIVE_FPS - (time.perf_counter() - started)))
-        fps = ACTIVE_FPS if watch.active else IDLE_FPS
+        cap = TRAINING_FPS if studio.training else ACTIVE_FPS
+        time.sleep(max(0.0, 1 / cap - (time.perf_counter() - started)))
+        fps = cap if watch.active else IDLE_FPS
         glfw.wait_events_timeout(max(0.0, 1 / fps - (time.perf_counter() - started)))
 
 
@@ -87,6 +95,7 @@ def run_studio(session: Session, runs_root: Path | None = None, script: Path | N
         try:
             _loop(window, ctx, studio, driver, watch)
         finally:
+            glfw.hide_window(window)  # closed at once for the user, whatever the run needs to stop
             studio.close()
             imgui.backends.opengl3_shutdown()
             imgui.backends.glfw_shutdown()

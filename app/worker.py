@@ -1,9 +1,13 @@
-"""The training thread: builds a Trainer, steps it, and publishes immutable snapshots.
+"""The training thread: builds the run's Trainers (one, or one per layer of a layered run),
+steps them, and publishes immutable snapshots.
 
-Only this thread calls the trainer's methods. The window reads what it publishes (`latest`,
+Only this thread calls the trainers' methods. The window reads what it publishes (`latest`,
 `series`, `info`, `error`) and asks for control changes, which this thread applies between two
-steps. Stopping is checked between steps, so it takes at most one step; a stopped run keeps
-its last checkpoint (the trainer writes those atomically at epoch ends) and writes nothing more.
+steps and records in the trainer's events (so in log.json). Stopping is checked between steps,
+so it takes at most one step once training runs; a trainer's set-up (edge maps, initial points)
+cannot be interrupted, and `join` waits for it. A stopped run keeps its last checkpoint (the
+trainer writes those atomically at epoch ends) and writes nothing more; a finished one writes
+its outputs, then runs `finish` (the curves and their report, as `edgedog train` does).
 """
 
 from __future__ import annotations
@@ -11,7 +15,7 @@ from __future__ import annotations
 import threading
 import time
 import traceback
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -24,7 +28,7 @@ if TYPE_CHECKING:
     from edgedog.train.trainer import Snapshot, Trainer
 
 STARTING, TRAINING, PAUSED = "starting", "training", "paused"
-FINISHED, STOPPED, FAILED = "finished", "stopped", "failed"
+FINISHING, FINISHED, STOPPED, FAILED = "extracting curves", "finished", "stopped", "failed"
 """What the worker is doing (`TrainingWorker.phase`)."""
 PAUSE_POLL = 0.05
 """Seconds between two looks at the stop flag while paused."""
@@ -66,17 +70,25 @@ class RunInfo:
     resumed_at_step: int
 
 
-class TrainingWorker:
-    """Runs `make_trainer()` and then `trainer.step()` in a daemon thread until done or stopped.
+LIVE_EVENT = "live_controls"
+"""The event (in the trainer's events, so in log.json) recording a live change of p or w(Up)."""
 
-    The trainer needs `step() -> loss`, `done`, `snapshot(loss)`, `controls` (read/update),
-    `write_outputs()`, `detector`, `raster`, `out`, `config.epochs`, `cameras`, `step_index`.
+
+class TrainingWorker:
+    """Trains the trainers `make_trainers()` yields, one after the other, in a daemon thread
+    until done or stopped, then calls `finish(last trainer)`.
+
+    A trainer needs `step() -> loss`, `done`, `snapshot(loss)`, `controls` (read/update),
+    `events`, `write_outputs()`, `detector`, `raster`, `out`, `config.epochs`, `cameras`,
+    `step_index`, `epoch`. The generator builds the next trainer after the last one finished
+    (a layered run's next layer starts from the layers below).
     """
 
-    def __init__(self, make_trainer: Callable[[], Trainer], run: int = 0,
-                 publish_every: float = PUBLISH_EVERY):
+    def __init__(self, make_trainers: Callable[[], Iterator[Trainer]], run: int = 0,
+                 publish_every: float = PUBLISH_EVERY, finish: Callable[[Trainer], object] | None = None,
+                 detectors: dict[int, str] | None = None):
         self.run, self.publish_every = run, publish_every
-        self._make_trainer = make_trainer
+        self._make_trainers, self._finish = make_trainers, finish
         self._lock = threading.Lock()
         self._stop = threading.Event()
         self._pending: dict = {}
@@ -86,6 +98,10 @@ class TrainingWorker:
         self._steps, self._training_seconds = 0, 0.0
         self.phase = STARTING
         self.info: RunInfo | None = None
+        """The trainer's settled choices (of the layer training now, in a layered run)."""
+        self.detectors: dict[int, str] = dict(detectors or {})
+        """Layer index -> the maps it was fitted to: of the layers finished before (given) and of
+        each trained since."""
         self.error: str | None = None
         """One line, "Type: message", when the trainer raised; `traceback` has the rest."""
         self.traceback: str | None = None
@@ -102,8 +118,9 @@ class TrainingWorker:
         with self._lock:
             self._pending.update(changes)
 
-    def stop(self, timeout: float = 1.0) -> bool:
-        """Ask the thread to stop after its current step; returns whether it ended in `timeout` s."""
+    def stop(self, timeout: float | None = 1.0) -> bool:
+        """Ask the thread to stop after its current step; returns whether it ended within `timeout`
+        seconds (None: wait however long a trainer's set-up or the final extraction takes)."""
         self._stop.set()
         if self._thread.is_alive():
             self._thread.join(timeout)
@@ -152,8 +169,20 @@ class TrainingWorker:
             self.phase = FAILED
 
     def _train(self) -> None:
-        trainer = self._make_trainer()
+        trainer = None
+        for trainer in self._make_trainers():
+            if not self._train_one(trainer):
+                self.phase = STOPPED
+                return
+        if self._finish is not None and trainer is not None:
+            self.phase = FINISHING
+            self._finish(trainer)
+        self.phase = FINISHED
+
+    def _train_one(self, trainer: Trainer) -> bool:
+        """Step `trainer` to its end and write its outputs; False when stopped first."""
         self._trainer = trainer
+        self.detectors[trainer.config.layer] = trainer.detector
         self.info = RunInfo(trainer.detector, trainer.raster, Path(trainer.out), trainer.config.epochs,
                             len(trainer.cameras), trainer.step_index)
         self._publish(trainer.snapshot(), [])
@@ -163,12 +192,11 @@ class TrainingWorker:
             with self._lock:
                 changes, self._pending = self._pending, {}
             if changes:
-                trainer.controls.update(**changes)
+                self._apply(trainer, changes)
             if trainer.done:
-                if stepped:
+                if stepped or not (Path(trainer.out) / "log.json").is_file():
                     trainer.write_outputs()
-                self.phase = FINISHED
-                return
+                return True
             if trainer.controls.read()[2]:
                 self.phase = PAUSED
                 self._stop.wait(PAUSE_POLL)
@@ -184,7 +212,17 @@ class TrainingWorker:
             if trainer.done or now - self._last_publish >= self.publish_every:
                 self._publish(trainer.snapshot(losses[-1]), losses)
                 losses = []
-        self.phase = STOPPED
+        return False
+
+    @staticmethod
+    def _apply(trainer: Trainer, changes: dict) -> None:
+        """Hand control changes to the trainer; a change of p or w(Up) becomes one of its events."""
+        before = dict(zip(("keep_ratio", "weighting"), trainer.controls.read()[:2]))
+        trainer.controls.update(**changes)
+        live = {key: value for key, value in changes.items() if key in before and value != before[key]}
+        if live:
+            trainer.events.append({"event": LIVE_EVENT, "epoch": trainer.epoch, "step": trainer.step_index,
+                                   **live})
 
     def _publish(self, snapshot, losses: list[float]) -> None:
         self._last_publish = time.perf_counter()

@@ -21,7 +21,16 @@ from edgedog.app.script import ScriptDriver, assign, matches
 from edgedog.app.session import Session
 from edgedog.app.state import Display, UIState
 from edgedog.app.view3d import View3D
-from edgedog.app.worker import FAILED, FINISHED, PAUSED, STOPPED, TRAINING, Published, TrainingWorker
+from edgedog.app.worker import (
+    FAILED,
+    FINISHED,
+    LIVE_EVENT,
+    PAUSED,
+    STOPPED,
+    TRAINING,
+    Published,
+    TrainingWorker,
+)
 from edgedog.renderer.config import RasterConfig
 from edgedog.renderer.gl.context import GLUnavailableError, offscreen_context
 from edgedog.renderer.primitives import RasterCamera
@@ -29,10 +38,11 @@ from edgedog.renderer.rasterize import rasterize
 
 from edgedog.builtin_scene import BOX_MAX, BOX_MIN, ground_truth_points, write_box_scene
 from edgedog.curve_files import read_edges
+from edgedog.errors import InputError
 from edgedog.scenes import load_scene
 from edgedog.train import losses
 from edgedog.train.config import preset
-from edgedog.train.run_folder import RUN_CONFIG, read_run
+from edgedog.train.run_folder import RUN_CONFIG, RunLock, read_run
 from edgedog.train.trainer import CHECKPOINT, Controls, Snapshot, Trainer
 
 
@@ -77,12 +87,16 @@ class FakeTrainer:
         self.config = dataclasses.replace(preset("preview"), epochs=steps)
         self.controls = BoundaryControls(self, 0.9, "exp")
         self.step_seconds, self.fail_at = step_seconds, fail_at
-        self.step_index, self.in_step, self.seen, self.outputs = 0, False, [], 0
+        self.step_index, self.in_step, self.seen, self.outputs, self.events = 0, False, [], 0, []
         self.detector, self.raster, self.out, self.cameras = "exact", RasterConfig(), Path("run"), [None]
 
     @property
     def done(self) -> bool:
         return self.step_index >= self.config.epochs
+
+    @property
+    def epoch(self) -> int:
+        return self.step_index
 
     def step(self) -> float:
         self.in_step = True
@@ -105,7 +119,7 @@ class FakeTrainer:
 
 def test_the_worker_publishes_snapshots_and_a_series():
     trainer = FakeTrainer()
-    worker = TrainingWorker(lambda: trainer, run=3, publish_every=0.02)
+    worker = TrainingWorker(lambda: iter([trainer]), run=3, publish_every=0.02)
     worker.start()
     wait_for(lambda: worker.latest is not None and worker.latest.version >= 4)
     first = worker.latest
@@ -121,7 +135,7 @@ def test_the_worker_publishes_snapshots_and_a_series():
 
 def test_control_changes_apply_between_steps():
     trainer = FakeTrainer()
-    worker = TrainingWorker(lambda: trainer)
+    worker = TrainingWorker(lambda: iter([trainer]))
     worker.start()
     wait_for(lambda: trainer.step_index > 5)
     worker.update_controls(keep_ratio=0.6, weighting="one_minus")
@@ -131,6 +145,10 @@ def test_control_changes_apply_between_steps():
     # Every step before the switch saw the old settings, every one after it the new ones.
     assert set(seen[:switch]) == {(0.9, "exp")} and set(seen[switch:]) == {(0.6, "one_minus")}
     assert worker.trainer_controls() == {"keep_ratio": 0.6, "weighting": "one_minus", "paused": False}
+    # The live change is one of the run's events (log.json), at the step it applied from.
+    (event,) = trainer.events
+    assert event == {"event": LIVE_EVENT, "epoch": switch, "step": switch, "keep_ratio": 0.6,
+                     "weighting": "one_minus"}
     worker.update_controls(paused=True)
     wait_for(lambda: worker.phase == PAUSED)
     paused_at = trainer.step_index
@@ -142,7 +160,7 @@ def test_control_changes_apply_between_steps():
 
 
 def test_a_trainer_exception_is_kept_for_the_window():
-    worker = TrainingWorker(lambda: FakeTrainer(fail_at=7))
+    worker = TrainingWorker(lambda: iter([FakeTrainer(fail_at=7)]))
     worker.start()
     wait_for(lambda: not worker.alive)
     assert worker.phase == FAILED
@@ -153,6 +171,7 @@ def test_a_trainer_exception_is_kept_for_the_window():
 def test_a_failing_set_up_is_kept_too():
     def broken():
         raise FileNotFoundError("no edge maps")
+        yield
 
     worker = TrainingWorker(broken)
     worker.start()
@@ -163,7 +182,7 @@ def test_a_failing_set_up_is_kept_too():
 
 def test_stop_ends_the_thread_within_a_second_without_writing_outputs():
     trainer = FakeTrainer(step_seconds=0.2)
-    worker = TrainingWorker(lambda: trainer)
+    worker = TrainingWorker(lambda: iter([trainer]))
     worker.start()
     wait_for(lambda: trainer.step_index >= 1)
     started = time.perf_counter()
@@ -172,13 +191,23 @@ def test_stop_ends_the_thread_within_a_second_without_writing_outputs():
     assert worker.phase == STOPPED and trainer.outputs == 0 and not trainer.in_step
 
 
-def test_a_finished_run_writes_its_outputs_once():
+def test_a_finished_run_writes_its_outputs_once_then_finishes():
     trainer = FakeTrainer(steps=20)
-    worker = TrainingWorker(lambda: trainer)
+    finished = []
+    worker = TrainingWorker(lambda: iter([trainer]), finish=finished.append)
     worker.start()
     wait_for(lambda: not worker.alive)
-    assert worker.phase == FINISHED and trainer.outputs == 1
+    assert worker.phase == FINISHED and trainer.outputs == 1 and finished == [trainer]
     assert worker.latest.snapshot.step == 20  # the final state is always published
+
+
+def test_the_trainers_of_a_layered_run_train_one_after_the_other():
+    layers = [FakeTrainer(steps=5), FakeTrainer(steps=7)]
+    worker = TrainingWorker(lambda: iter(layers))
+    worker.start()
+    wait_for(lambda: not worker.alive)
+    assert worker.phase == FINISHED and [t.outputs for t in layers] == [1, 1]
+    assert worker.steps == 12 and worker.latest.snapshot.step == 7
 
 
 # --- the real trainer in the worker ----------------------------------------------------------
@@ -186,7 +215,7 @@ def test_a_finished_run_writes_its_outputs_once():
 def test_stopping_a_real_run_keeps_a_checkpoint_it_resumes_from(small_box, tmp_path):
     config = small_config(epochs=1000, checkpoint_every=2)
     scene = load_scene(small_box, downscale=config.downscale)
-    worker = TrainingWorker(lambda: Trainer(scene, config, tmp_path, progress=False))
+    worker = TrainingWorker(lambda: iter([Trainer(scene, config, tmp_path, progress=False)]))
     worker.start()
     wait_for(lambda: (tmp_path / CHECKPOINT).is_file() and worker.steps > 40, timeout=30)
     assert worker.stop(1.0)
@@ -197,24 +226,62 @@ def test_stopping_a_real_run_keeps_a_checkpoint_it_resumes_from(small_box, tmp_p
 
 # --- session ---------------------------------------------------------------------------------
 
-def test_a_scene_trains_into_new_run_folders_and_a_run_folder_resumes(small_box, tmp_path):
+def test_a_finished_run_has_the_files_of_edgedog_train_and_reopens_as_it_ended(small_box, tmp_path):
     session = Session.open(small_box, tmp_path / "runs", "preview", ["init_count=200", "epochs=2"])
     assert session.config.init_count == 200 and session.ground_truth.shape[1] == 3
     worker = session.start("preview", session.config)
     wait_for(lambda: not worker.alive, timeout=60)
     assert worker.phase == FINISHED, worker.error
     first = session.run_dir
-    assert read_run(first).config == session.config and (first / "log.json").is_file()
-    session.start("preview", session.config)  # a second start never reuses a folder
-    assert session.run_dir != first and session.stop()
+    assert read_run(first).config == session.config
+    for name in ("log.json", "primitives.ply", "points.ply", "curves.json", "curves.obj", "extract.json"):
+        assert (first / name).is_file(), name
+    report = json.loads((first / "extract.json").read_text())
+    assert "metrics" in report and "ground_truth" in report  # the box has ground truth: scored
+    assert session.stop(None)
+    RunLock.acquire(first).release()  # the finished run's lock was released
     reopened = Session.open(first)
-    assert reopened.resumable and reopened.runs_root == first.parent
+    saved = reopened.saved
+    assert not reopened.resumable and reopened.worker is saved and reopened.run_dir == first
+    log = json.loads((first / "log.json").read_text())
+    assert len(saved.latest.snapshot.means) == log["final_primitives"] and saved.latest.snapshot.loss > 0
+    assert saved.series().shape == (2, 3) and saved.steps == 2 * 8
+    assert saved.extraction.curves.num_curves == read_edges(first / "curves.json").num_curves
+    assert saved.extraction.counts == report["counts"]
+    reopened.start("preview", reopened.config)  # a finished run is never trained again: a new folder
+    assert reopened.run_dir != first and reopened.stop(None)
+
+
+def test_a_stopped_run_resumes_in_its_folder_which_it_locks(small_box, tmp_path):
+    session = Session.open(small_box, tmp_path / "runs", "preview",
+                           ["init_count=200", "epochs=1000", "checkpoint_every=1"])
+    worker = session.start("preview", session.config)
+    folder = session.run_dir
+    with pytest.raises(InputError, match="in use by another edgedog process"):
+        RunLock.acquire(folder)  # held from the start
+    wait_for(lambda: (folder / CHECKPOINT).is_file(), timeout=60)
+    assert session.stop(None) and worker.phase == STOPPED
+    RunLock.acquire(folder).release()  # released once the worker ended
+    reopened = Session.open(folder)
+    assert reopened.resumable and reopened.runs_root == folder.parent and reopened.saved is None
     assert reopened.config == session.config and reopened.preset == "preview"
+    with RunLock.acquire(folder):
+        with pytest.raises(InputError, match="in use"):
+            reopened.start("preview", reopened.config)  # another process trains into it
     resumed = reopened.start("preview", reopened.config)
-    wait_for(lambda: not resumed.alive, timeout=30)
-    assert reopened.run_dir == first and resumed.info.resumed_at_step == 2 * 8
+    wait_for(lambda: resumed.info is not None, timeout=30)
+    assert reopened.run_dir == folder and resumed.info.resumed_at_step > 0
     reopened.start("preview", reopened.config, fresh=True)
-    assert reopened.run_dir != first and reopened.stop()
+    assert reopened.run_dir != folder and reopened.stop(None)
+
+
+def test_a_start_stopped_before_its_first_checkpoint_leaves_no_folder(small_box, tmp_path):
+    session = Session.open(small_box, tmp_path / "runs", "preview", ["init_count=200"])
+    session.start("preview", session.config)
+    folder = session.run_dir
+    assert (folder / RUN_CONFIG).is_file()
+    assert session.stop(None)
+    assert not folder.exists()
 
 
 def test_a_run_folder_with_a_bad_config_is_one_error(tmp_path):
@@ -239,7 +306,7 @@ def test_inspectors_are_the_trainers_own_maps(small_box, tmp_path):
     trainer = Trainer(scene, small_config(), tmp_path, progress=False)
     snapshot = trainer.snapshot()
     panels = inspect_view(snapshot, scene, 3, trainer.detector, trainer.raster, "one_minus", True)
-    assert [p.name for p in panels] == ["image", "edge map", "render", "depth", "Up", "w(Up) one_minus"]
+    assert [p.name for p in panels] == ["image", "edge map", "render", "depth", "U", "w = 1 - U"]
     assert all(p.rgba.shape == (48, 48, 4) and p.rgba.dtype == np.uint8 for p in panels)
     with torch.no_grad():
         out = rasterize(trainer.model.primitives(), trainer.cameras[3], trainer.raster)

@@ -6,14 +6,20 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from edgedog.app import MIN_SIZE
 from edgedog.files import default_cache
 from edgedog.train.config import PRESETS
+
+MAX_SIZE = 16384
+"""A side longer than this is no screen's (and no GL framebuffer's)."""
 
 
 def _size(text: str) -> tuple[int, int]:
     width, sep, height = text.partition("x")
-    if not sep or not width.isdigit() or not height.isdigit() or int(width) < 320 or int(height) < 240:
-        raise argparse.ArgumentTypeError(f"expected WIDTHxHEIGHT of at least 320x240, got {text!r}")
+    if not sep or not width.isdigit() or not height.isdigit() or not (
+            MIN_SIZE[0] <= int(width) <= MAX_SIZE and MIN_SIZE[1] <= int(height) <= MAX_SIZE):
+        raise argparse.ArgumentTypeError(f"expected WIDTHxHEIGHT from {MIN_SIZE[0]}x{MIN_SIZE[1]} to "
+                                         f"{MAX_SIZE}x{MAX_SIZE}, got {text!r}")
     return int(width), int(height)
 
 

@@ -1,0 +1,85 @@
+"""Keyboard shortcuts, turned into the same requests and state changes as the panels' widgets,
+and the help window (F1 or h) that lists them with the mouse gestures."""
+
+from __future__ import annotations
+
+from edgedog.app.worker import PAUSED, STARTING, TRAINING
+from imgui_bundle import imgui
+
+SHORTCUTS = (
+    ("space", "pause or resume training (start when nothing runs)"),
+    ("r", "reset the 3D view"),
+    ("1 - 9", "select training view 1 - 9 and look through its camera"),
+    ("Ctrl+O", "open a scene or run folder"),
+    ("Ctrl+E", "export the curves of the latest snapshot in the checked formats"),
+    ("F1 or h", "show or hide this help"),
+    ("Esc or q", "close the help or the folder browser, else quit (training stops; the run keeps "
+                 "its last checkpoint)"),
+)
+GESTURES = (
+    ("left drag", "orbit the 3D view"),
+    ("right or middle drag, shift drag", "pan"),
+    ("wheel", "zoom"),
+    ("drop a folder", "open it"),
+)
+DIGITS = [getattr(imgui.Key, f"_{digit}") for digit in range(1, 10)]
+
+
+def _pressed(key: imgui.Key, ctrl: bool = False) -> bool:
+    return imgui.is_key_pressed(key, False) and imgui.get_io().key_ctrl == ctrl
+
+
+def handle_keys(studio) -> None:
+    """Act on this frame's shortcuts (none while a text field has the keyboard)."""
+    io, state = imgui.get_io(), studio.state
+    if io.want_text_input:
+        return
+    if _pressed(imgui.Key.space):
+        phase = None if studio.worker is None else studio.worker.phase
+        if phase in (TRAINING, STARTING):
+            state.request("pause")
+        elif phase == PAUSED:
+            state.request("resume")
+        else:
+            state.request("start")
+    if _pressed(imgui.Key.r):
+        state.request("reset_view")
+    for index, key in enumerate(DIGITS):
+        if _pressed(key) and index < len(studio.session.scene):
+            state.view = index
+            state.request("snap")
+    if _pressed(imgui.Key.o, ctrl=True):
+        state.request("open")
+    if _pressed(imgui.Key.e, ctrl=True):
+        state.request("export")
+    if _pressed(imgui.Key.f1) or _pressed(imgui.Key.h):
+        state.request("help")
+    if _pressed(imgui.Key.escape) and (state.show_help or studio.dialog is not None):
+        state.show_help, studio.dialog = False, None  # Esc closes the help or the browser first
+    elif _pressed(imgui.Key.escape) or _pressed(imgui.Key.q):
+        state.request("close")
+
+
+def draw_help(studio) -> None:
+    """The help window, while `state.show_help`."""
+    state = studio.state
+    if not state.show_help:
+        return
+    viewport = imgui.get_main_viewport()
+    imgui.set_next_window_pos(viewport.get_center(), imgui.Cond_.appearing, imgui.ImVec2(0.5, 0.5))
+    expanded, state.show_help = imgui.begin("Help", state.show_help, imgui.WindowFlags_.always_auto_resize)
+    if expanded:
+        for title, rows in (("Keys", SHORTCUTS), ("Mouse", GESTURES)):
+            imgui.separator_text(title)
+            if imgui.begin_table(f"##{title}", 2):
+                for key, what in rows:
+                    imgui.table_next_row()
+                    imgui.table_next_column()
+                    imgui.text(key)
+                    imgui.table_next_column()
+                    imgui.text(what)
+                imgui.end_table()
+        imgui.separator_text("Settings")
+        imgui.text_wrapped("Live settings (pruning p, w(U)) reach the trainer at its next step; "
+                           "the others apply at the next Start or Restart. Hover a control for more.")
+    imgui.end()

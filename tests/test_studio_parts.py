@@ -1,0 +1,80 @@
+"""The studio's parts that need no window: colour maps of empty and constant values, the layer
+selections, the folder browser's listing, the scripted keys, and what an aborted start leaves."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from edgedog.app.colors import colormap
+from edgedog.app.extraction import export_path
+from edgedog.app.folder_dialog import folder_kind, sub_folders
+from edgedog.app.layers import finest, selection, visible_subset
+from edgedog.app.script import press
+from edgedog.app.session import discard_empty_run
+
+from edgedog.builtin_scene import write_box_scene
+from edgedog.train.config import preset
+from edgedog.train.run_folder import LOCK_FILE, RunFolder, write_run
+from edgedog.train.trainer import Snapshot
+
+
+def snapshot_of_layers(layers: list[int]) -> Snapshot:
+    n = len(layers)
+    return Snapshot(0, 0, 0.0, np.zeros((n, 3)), np.ones((n, 3)), np.tile([1.0, 0, 0, 0], (n, 1)),
+                    np.linspace(0.1, 0.9, n), np.zeros((n, 2)), np.zeros((0, 3)), np.array(layers))
+
+
+def test_no_values_give_no_colours_and_a_constant_one_is_not_black():
+    assert colormap(np.zeros(0), 0.0, 1.0, "magma").shape == (0, 3)
+    ones = colormap(np.ones((4, 4)), 1.0, 1.0, "magma")  # w(U) = 1 everywhere
+    assert (ones == colormap(np.array([1.0]), 0.0, 1.0, "magma")[0]).all()  # the map's top colour
+    assert colormap(np.zeros(3), 0.0, 0.0, "gray").max() == 0
+
+
+def test_the_layers_shown_name_a_selection_and_its_finest_layer():
+    snapshot = snapshot_of_layers([0, 0, 1, 2])
+    assert selection(snapshot, {}) == "" and finest(snapshot, {}) == 2  # all shown
+    assert selection(snapshot, {"L2": False}) == "L0+L1" and finest(snapshot, {"L2": False}) == 1
+    hidden = {"L0": False, "L1": False, "L2": False}
+    assert finest(snapshot, hidden) is None
+    assert len(visible_subset(snapshot, hidden).means) == 0
+    assert export_path(Path("run"), 12, "obj", "L0+L1") == Path("run/exports/curves_step000012_L0+L1.obj")
+    assert export_path(Path("run"), 12, "obj") == Path("run/exports/curves_step000012.obj")
+
+
+def test_the_folder_browser_lists_folders_and_says_what_they_are(tmp_path):
+    scene = write_box_scene(tmp_path / "box", views=2, size=32)
+    write_run(RunFolder(tmp_path / "a run", scene, "preview", preset("preview")))
+    (tmp_path / ".hidden").mkdir()
+    (tmp_path / "plain").mkdir()
+    (tmp_path / "a file").write_text("")
+    names, note = sub_folders(tmp_path)
+    assert names == ["a run", "box", "plain"] and note == ""
+    assert folder_kind(tmp_path / "a run") == "run" and folder_kind(tmp_path / "plain") == ""
+    assert folder_kind(scene) == "nerf scene"
+    assert sub_folders(tmp_path / "missing")[1].startswith("cannot read this folder")
+
+
+def test_scripted_keys_are_checked():
+    assert len(press("ctrl+o")) == 1 and len(press("1")) == 1
+    with pytest.raises(ValueError, match="unknown key"):
+        press("hyper+x")
+
+
+def test_an_aborted_start_leaves_no_folder_but_a_trained_one_stays(tmp_path):
+    layered = tmp_path / "layered"
+    for folder in (layered, layered / "L0", layered / "L1"):
+        folder.mkdir()
+        (folder / "config.json").write_text("{}")
+    (layered / "layers.json").write_text("{}")
+    (layered / LOCK_FILE).write_text("")
+    discard_empty_run(layered)
+    assert not layered.exists()
+    trained = tmp_path / "trained"
+    trained.mkdir()
+    (trained / "config.json").write_text("{}")
+    (trained / "checkpoint.pt").write_bytes(b"")
+    discard_empty_run(trained)
+    assert (trained / "checkpoint.pt").is_file() and (trained / "config.json").is_file()

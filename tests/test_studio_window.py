@@ -1,0 +1,174 @@
+"""The studio window under a virtual X server, driven by scripts (edgedog.app.script) whose clicks,
+drags and keys go through imgui's input queue as a mouse's and keyboard's do: the crashes and
+dead controls of issue 29 stay fixed, and the window works at its smallest sizes."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import cv2
+import pytest
+
+from edgedog.builtin_scene import write_box_scene
+
+FAST = ["--set", "init_count=300", "--set", "checkpoint_every=1"]
+"""Settings of the scripted runs: few primitives, a checkpoint every epoch."""
+
+
+@pytest.fixture(scope="module")
+def box(tmp_path_factory) -> Path:
+    """The exact box at 8 views of 96 px: set up in a fraction of a second."""
+    return write_box_scene(tmp_path_factory.mktemp("window") / "box", views=8, size=96)
+
+
+def run_script(actions: list[dict], args: list, display: str, folder: Path, size: str = "1280x800"
+               ) -> tuple[subprocess.CompletedProcess, dict]:
+    """Run `edgedog studio ARGS` with the script; returns the process and its report."""
+    report, script = folder / "report.json", folder / "script.json"
+    script.write_text(json.dumps({"report": str(report), "actions": actions}))
+    result = subprocess.run([sys.executable, "-m", "edgedog", "studio", *map(str, args), "--script", script,
+                             "--size", size], env={**os.environ, "DISPLAY": display}, cwd=folder,
+                            capture_output=True, text=True, timeout=180)
+    outcome = json.loads(report.read_text()) if report.is_file() else {}
+    return result, outcome
+
+
+def assert_ok(result: subprocess.CompletedProcess, outcome: dict) -> dict:
+    """The script ran to its end and the studio exited 0; returns the final probes."""
+    assert result.returncode == 0, result.stderr[-3000:]
+    assert outcome["ok"], outcome["failure"]
+    return outcome["probe"]
+
+
+def test_hiding_every_layer_under_each_colouring_keeps_the_window(box, xvfb_display, tmp_path):
+    actions = [{"request": "start"}, {"expect": {"splats_drawn": [">", 0]}, "timeout": 60}]
+    for mode in ("opacity", "DoG a", "DoG t"):
+        actions += [{"set": {"display.color_by": mode, "display.layers.L0": False}},
+                    {"expect": {"splats_drawn": 0}, "timeout": 5},
+                    {"set": {"display.layers.L0": True}},
+                    {"expect": {"splats_drawn": [">", 0]}, "timeout": 5}]
+    result, outcome = run_script([*actions, {"request": "close"}], [box, "--runs", tmp_path / "runs", *FAST],
+                                 xvfb_display, tmp_path)
+    assert_ok(result, outcome)
+
+
+def test_the_first_launch_makes_the_builtin_scene_and_opens(xvfb_display, tmp_path):
+    # The scene is rendered through EGL in this process before GLFW's GLX window opens.
+    result, outcome = run_script([{"expect": {"inspectors": 2}, "timeout": 30}, {"request": "close"}],
+                                 ["--cache", tmp_path / "cache"], xvfb_display, tmp_path)
+    assert "BadAccess" not in result.stderr
+    probe = assert_ok(result, outcome)
+    assert probe["title"].startswith("boss-canny - no run")
+
+
+def test_closing_during_the_set_up_exits_cleanly_and_leaves_no_folder(builtin_scene_dir, xvfb_display,
+                                                                     tmp_path):
+    # 50 views of 400 px: the trainer's set-up (COLMAP features for the initial points) is under way.
+    actions = [{"request": "start"}, {"wait": 0.3}, {"request": "close"}]
+    result, outcome = run_script(actions, [builtin_scene_dir, "--runs", tmp_path / "runs"], xvfb_display,
+                                 tmp_path)
+    probe = assert_ok(result, outcome)
+    assert probe["phase"] == "stopped" and probe["runs"] == 1
+    assert not list((tmp_path / "runs").iterdir())  # the aborted start left nothing
+
+
+def test_the_mouse_and_the_keys_drive_the_view_the_run_and_the_panels(box, xvfb_display, tmp_path):
+    actions = [
+        {"expect": {"view_at_home": True, "inspectors": 2}, "timeout": 20},
+        {"drag": "3D view", "by": [150, 60]},
+        {"expect": {"view_at_home": False}, "timeout": 5},
+        {"click": "reset view"},
+        {"expect": {"view_at_home": True}, "timeout": 5},
+        {"drag": "3D view", "by": [-80, 30]},
+        {"expect": {"view_at_home": False}, "timeout": 5},
+        {"key": "r"},
+        {"expect": {"view_at_home": True}, "timeout": 5},
+        {"key": "3"},
+        {"expect": {"view_index": 2, "view_at_home": False}, "timeout": 5},
+        {"key": "space"},
+        {"expect": {"phase": "training"}, "timeout": 60},
+        {"key": "space"},
+        {"expect": {"phase": "paused"}, "timeout": 5},
+        {"key": "space"},
+        {"expect": {"phase": "training"}, "timeout": 5},
+        {"key": "f1"},
+        {"expect": {"help": True}, "timeout": 5},
+        {"key": "escape"},
+        {"expect": {"help": False}, "timeout": 5},
+        {"click": "Open..."},
+        {"expect": {"dialog": str(box.parent)}, "timeout": 5},
+        {"click": "Open"},  # the browser starts on the open scene's folder, the scene selected
+        {"expect": {"dialog": None, "runs": 0, "status": f"opened {box}"}, "timeout": 10},
+        {"key": "ctrl+o"},
+        {"expect": {"dialog": str(box.parent)}, "timeout": 5},
+        {"key": "escape"},
+        {"expect": {"dialog": None}, "timeout": 5},
+        {"key": "q"},
+    ]
+    result, outcome = run_script(actions, [box, "--runs", tmp_path / "runs", *FAST], xvfb_display, tmp_path)
+    probe = assert_ok(result, outcome)
+    assert probe["title"] == "box - no run - EdgeDoG Studio"  # the scene opened again: no run yet
+
+
+def test_at_800x600_the_3d_view_keeps_a_third_of_the_width(box, xvfb_display, tmp_path):
+    shot = tmp_path / "small.png"
+    actions = [{"expect": {"inspectors": 2}, "timeout": 20}, {"wait": 0.5},
+               {"request": "screenshot", "path": str(shot)}, {"request": "close"}]
+    assert_ok(*run_script(actions, [box], xvfb_display, tmp_path, size="800x600"))
+    image = cv2.imread(str(shot))
+    assert image.shape == (600, 800, 3)
+    # The view is the only black area (the panels are grey): columns black over most of its rows.
+    band = image[60:300]
+    view_columns = ((band.max(axis=2) == 0).mean(axis=0) > 0.5).sum()
+    assert view_columns >= 800 / 3
+
+
+def test_a_finished_run_opens_with_its_model_history_and_curves(box, xvfb_display, tmp_path):
+    train = subprocess.run([sys.executable, "-m", "edgedog", "train", box, "--out", tmp_path / "run",
+                            "--preset", "preview", "--set", "epochs=3", "--set", "init_count=300", "--quiet"],
+                           capture_output=True, text=True, timeout=120)
+    assert train.returncode == 0, train.stderr[-2000:]
+    actions = [{"expect": {"phase": "finished", "splats_drawn": [">", 0], "series": 3, "curves": [">=", 0],
+                           "steps": 3 * 8, "loss": [">", 0]}, "timeout": 20},
+               {"request": "close"}]
+    probe = assert_ok(*run_script(actions, [tmp_path / "run"], xvfb_display, tmp_path))
+    assert probe["runs"] == 0 and probe["title"] == "box - run - EdgeDoG Studio"
+    assert not (tmp_path / "run" / "exports").exists()  # opening wrote nothing
+
+
+def test_too_small_a_window_is_refused_in_one_line(box):
+    result = subprocess.run([sys.executable, "-m", "edgedog", "studio", str(box), "--size", "320x240"],
+                            capture_output=True, text=True, timeout=60)
+    assert result.returncode == 2 and result.stderr.count("\n") == 1 and "640x480" in result.stderr
+
+
+def test_a_layered_run_trains_filters_its_curves_by_layer_exports_per_layer_and_reopens(box, xvfb_display,
+                                                                                       tmp_path):
+    train = [{"set": {"restart.layers": 2}}, {"request": "start"},
+             {"expect": {"phase": "finished", "layers": ["L0", "L1"], "curves_selection": ""},
+              "timeout": 120},
+             {"set": {"display.layers.L1": False}},
+             {"expect": {"curves_selection": "L0"}, "timeout": 60},  # the curves follow the layers shown
+             {"key": "ctrl+e"},
+             {"expect": {"exports": 3}, "timeout": 60},
+             {"request": "close"}]
+    probe = assert_ok(*run_script(train, [box, "--runs", tmp_path / "runs", "--set", "epochs=2", *FAST],
+                                  xvfb_display, tmp_path))
+    run = Path(probe["run_dir"]).parent  # the top layer's folder is in the layered run's
+    assert (run / "layers.json").is_file() and (run / "layers_report.json").is_file()
+    for selection in ("L0", "L1", "L0+L1"):  # what `edgedog train --layers L0,L1` writes
+        assert (run / "curves" / selection / "curves.json").is_file()
+    # One snapshot, every format, the layers shown named as `edgedog export --layers` names them.
+    assert sorted(Path(path).name for path in probe["export_paths"]) == [
+        f"curves_step{probe['steps'] // 2:06d}_L0.{fmt}" for fmt in ("json", "obj", "ply")]
+    reopen = [{"expect": {"phase": "finished", "layers": ["L0", "L1"], "curves_selection": "",
+                          "splats_drawn": [">", 0]}, "timeout": 20},
+              {"set": {"display.layers.L0": False}},
+              {"expect": {"curves_selection": "L1"}, "timeout": 60},
+              {"request": "close"}]
+    probe = assert_ok(*run_script(reopen, [run], xvfb_display, tmp_path))
+    assert probe["runs"] == 0 and probe["title"] == f"box - {run.name} - EdgeDoG Studio"
