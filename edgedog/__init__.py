@@ -5,4 +5,4 @@ Importing this package is cheap: it loads neither torch nor the C++ extension. S
 (evaluation), `edgedog.renderer` (rasterizer and GL renderer), `edgedog.app` (the studio).
 """
 
-__version__ = "0.1.0"
+__version__ = "0.2.0"

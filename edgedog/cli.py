@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+import traceback
 
 from edgedog import __version__
 from edgedog.commands import (
@@ -27,8 +28,20 @@ COMMANDS = (info, edges, calibrate, init, sfm, train, extract, export, evaluate,
             studio)
 
 
+INTERRUPTED = 130
+"""Exit code after Ctrl-C (128 + SIGINT), as shells report it."""
+
+
+class OneLineParser(argparse.ArgumentParser):
+    """argparse with its errors in the one-line form of every other error (and exit code 2);
+    `--help` still prints the usage."""
+
+    def error(self, message: str):
+        self.exit(2, f"edgedog: error: {self.prog}: {message} (see {self.prog} --help)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = OneLineParser(
         prog="edgedog",
         description="EdgeDoG Studio: 3D edges from posed images with DoG splatting.",
     )
@@ -40,13 +53,34 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run a command; user errors print one line `edgedog: error: <file>: <problem>`, exit 2."""
+    """Run a command.
+
+    A user's error (a bad file or setting, a path that cannot be written) prints one line
+    `edgedog: error: <file or setting>: <problem>` and exits 2; Ctrl-C stops with a line saying
+    how to continue and exits 130; anything else is a bug of ours: its traceback, then a line
+    asking to report it, exit 1.
+    """
     args = build_parser().parse_args(argv)
     try:
         return args.run(args) or 0
     except EdgeDogError as exc:
-        print(f"edgedog: error: {exc}", file=sys.stderr)
-        return 2
+        return _fail(str(exc))
+    except OSError as exc:  # the environment: permissions, a full disk, a vanished file
+        where = f"{exc.filename}: " if exc.filename else ""
+        return _fail(f"{where}{exc.strerror or exc}")
+    except KeyboardInterrupt:
+        hint = getattr(args, "resume_hint", None)
+        return _fail("interrupted" + (f"; {hint(args)}" if hint else ""), INTERRUPTED)
+    except Exception:
+        traceback.print_exc()
+        print("edgedog: internal error: this is a bug in edgedog; please report it with the command "
+              "line and the traceback above", file=sys.stderr)
+        return 1
+
+
+def _fail(message: str, code: int = 2) -> int:
+    print(f"edgedog: error: {message}", file=sys.stderr)
+    return code
 
 
 if __name__ == "__main__":

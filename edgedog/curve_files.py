@@ -24,7 +24,19 @@ from plyfile import PlyData, PlyElement
 from edgedog.curves.bezier import bezier_points
 from edgedog.errors import InputError
 from edgedog.files import atomic_write, atomic_write_bytes, atomic_write_json, read_json
-from edgedog.metrics import SAMPLE_SPACING, sample_cubic_bezier, sample_line, sample_polyline
+from edgedog.metrics import (
+    MAX_SAMPLES,
+    SAMPLE_SPACING,
+    sample_count,
+    sample_cubic_bezier,
+    sample_line,
+    sample_polyline,
+)
+from edgedog.scenes.camera import MAX_CAMERA_DISTANCE
+
+MAX_COORDINATE = MAX_CAMERA_DISTANCE
+"""Largest coordinate an edge file may hold: edges lie in a scene, whose cameras are within this
+distance of the origin; beyond it a coordinate is broken (1e300) or in other units."""
 
 
 @dataclass
@@ -55,6 +67,14 @@ class EdgeCurves:
     @property
     def is_empty(self) -> bool:
         return self.num_curves == 0 and len(self.points) == 0
+
+    def sample_bound(self, spacing: float = SAMPLE_SPACING) -> float:
+        """An upper bound of the number of points `sample` draws from the curves (free points not
+        counted; Béziers by their control polygon, never shorter than the curve), without sampling."""
+        lengths = [np.linalg.norm(self.lines[:, 1] - self.lines[:, 0], axis=1),
+                   np.linalg.norm(np.diff(self.beziers, axis=1), axis=2).sum(axis=1),
+                   [np.linalg.norm(np.diff(p, axis=0), axis=1).sum() for p in self.polylines]]
+        return sum(sample_count(part, spacing) for part in lengths)
 
     def sample(self, spacing: float = SAMPLE_SPACING) -> np.ndarray:
         """Points (N, 3) on every curve with the evaluation's sampling rule, plus the free points."""
@@ -94,7 +114,23 @@ def read_edges(path: str | Path) -> EdgeCurves:
         raise InputError(path, f"unsupported edge file type {path.suffix!r} (use .json, .ply or .obj)")
     if not path.is_file():
         raise InputError(path, "no such file")
-    return reader(path)
+    return _within_bounds(path, reader(path))
+
+
+def _within_bounds(path: Path, curves: EdgeCurves) -> EdgeCurves:
+    """`curves` when their coordinates lie within MAX_COORDINATE and sampling them for the
+    evaluation gives at most MAX_SAMPLES points; else an InputError naming the file."""
+    parts = [curves.lines, curves.beziers, curves.points, *curves.polylines]
+    largest = max((float(np.abs(part).max()) for part in parts if part.size), default=0.0)
+    if largest > MAX_COORDINATE:
+        raise InputError(path, f"holds a coordinate of {largest:.3g}, beyond the {MAX_COORDINATE:.0e} "
+                               "units a scene may span")
+    count = curves.sample_bound()
+    if count > MAX_SAMPLES:
+        raise InputError(path, f"its curves would be sampled into {count:.3g} points every "
+                               f"{SAMPLE_SPACING} units, more than {MAX_SAMPLES:,}: far longer curves than "
+                               "a scene of unit size holds")
+    return curves
 
 
 def _finite(path: Path, what: str, values: np.ndarray) -> np.ndarray:

@@ -23,3 +23,13 @@ class InputError(EdgeDogError):
 
 class ConfigError(EdgeDogError):
     """An option or setting that cannot be used (unknown name, value out of range)."""
+
+
+class OutputError(EdgeDogError):
+    """A file or folder we were asked to write cannot be written (permissions, a full disk, a
+    path that is a folder or whose parent is a file). The message names the path first."""
+
+    def __init__(self, path: str | Path, problem: str):
+        self.path = Path(path)
+        self.problem = problem
+        super().__init__(f"{self.path}: {problem}")

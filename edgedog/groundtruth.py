@@ -17,7 +17,7 @@ from plyfile import PlyData
 
 from edgedog.errors import InputError
 from edgedog.files import read_json
-from edgedog.metrics import sample_line
+from edgedog.metrics import MAX_SAMPLES, sample_count, sample_line
 
 GT_SPACING = 0.005
 """Resampling step along each feature curve, in raw CAD units (the protocol's value)."""
@@ -87,6 +87,8 @@ def read_obj_vertices(path: Path) -> np.ndarray:
         raise InputError(path, "malformed vertex record") from None
     if vertices.ndim != 2 or vertices.shape[1] != 3:
         raise InputError(path, "no vertices with three coordinates")
+    if not np.all(np.isfinite(vertices)):
+        raise InputError(path, "vertices contain NaN or Inf")
     return vertices
 
 
@@ -98,8 +100,13 @@ def normalisation(stats_path: Path, scan_id: str) -> tuple[float, np.ndarray]:
     stats = read_json(stats_path)
     if scan_id not in stats or "bbox" not in stats[scan_id]:
         raise InputError(stats_path, f"no bbox for object {scan_id}")
-    bbox = np.asarray(stats[scan_id]["bbox"], dtype=np.float64)
+    try:
+        bbox = np.asarray(stats[scan_id]["bbox"], dtype=np.float64).reshape(9)
+    except (TypeError, ValueError):
+        raise InputError(stats_path, f"bbox of object {scan_id} is not 9 numbers") from None
     lo, hi, ranges = bbox[0:3], bbox[3:6], bbox[6:9]
+    if not (np.all(np.isfinite(bbox)) and ranges.max() > 0):
+        raise InputError(stats_path, f"bbox of object {scan_id} is not finite with a positive range")
     scale = 1.0 / ranges.max()
     return scale, 0.5 - (lo + hi) / 2 * scale
 
@@ -132,18 +139,34 @@ def abc_points_from_cad(obj: Path, features: Path, stats: Path, scan_id: str) ->
         raise InputError(features, "file not found") from None
     except (yaml.YAMLError, TypeError, KeyError) as exc:
         raise InputError(features, f"not an ABC features file ({type(exc).__name__})") from None
-    samples = []
-    for number, curve in enumerate(curves):
-        if not curve.get("sharp", False):
-            continue
-        indices = np.asarray(curve["vert_indices"], dtype=np.int64)
-        if indices.size and (indices.min() < 0 or indices.max() >= len(vertices)):
-            raise InputError(features, f"curve {number} indexes vertices outside {obj.name}")
-        samples.append(resample_polyline(vertices[indices]))
-    if not samples:
+    polylines = [vertices[indices] for indices in _sharp_curves(curves, len(vertices), features, obj)]
+    if not polylines:
         raise InputError(features, "no sharp feature curves")
+    count = sum(sample_count(np.linalg.norm(np.diff(p, axis=0), axis=1)) for p in polylines)
+    if count > MAX_SAMPLES:
+        raise InputError(features, f"its sharp curves would be sampled into {count:.3g} points, more than "
+                                   f"{MAX_SAMPLES:,}: not an ABC object's curves")
+    samples = [resample_polyline(p) for p in polylines]
     scale, offset = normalisation(stats, scan_id)
     return np.concatenate(samples) * scale + offset
+
+
+def _sharp_curves(curves, vertex_count: int, features: Path, obj: Path) -> list[np.ndarray]:
+    """Vertex indices of each sharp curve of an ABC features file's `curves` list."""
+    if not isinstance(curves, list):
+        raise InputError(features, "'curves' is not a list")
+    sharp = []
+    for number, curve in enumerate(curves):
+        try:
+            if not curve.get("sharp", False):
+                continue
+            indices = np.asarray(curve["vert_indices"], dtype=np.int64).reshape(-1)
+        except (AttributeError, KeyError, TypeError, ValueError):
+            raise InputError(features, f"curve {number} has no list of integer vert_indices") from None
+        if indices.size and (indices.min() < 0 or indices.max() >= vertex_count):
+            raise InputError(features, f"curve {number} indexes vertices outside {obj.name}")
+        sharp.append(indices)
+    return sharp
 
 
 def find_ground_truth(scene_root: Path, scan_id: str) -> GroundTruthSource | None:

@@ -27,6 +27,11 @@ THRESHOLDS = (0.005, 0.01, 0.02)
 VOXELS_PER_AXIS = 256
 VOXEL_BOUNDS = (-1.0, 1.0)
 
+MAX_SAMPLES = 10_000_000
+"""Most points one file's curves may be sampled into (every 5 mm: 50 km of curves in a unit-sized
+scene). An ABC object's ground truth has 10^4 to 10^5 samples and a dense prediction a few times
+that; a file over the limit is broken or in other units, and sampling it would take gigabytes."""
+
 # Gauss-Legendre rule for Bézier arc lengths: 8 nodes on each of 64 equal subintervals of t
 # integrates |B'(t)| to ~1e-12 relative even for strongly curved control polygons.
 _GL_NODES, _GL_WEIGHTS = np.polynomial.legendre.leggauss(8)
@@ -44,6 +49,12 @@ def sample_line(a: np.ndarray, b: np.ndarray, spacing: float = SAMPLE_SPACING) -
     n = int(np.linalg.norm(b - a) // spacing)
     t = np.linspace(0.0, 1.0, n)[:, None]
     return a + t * (b - a)
+
+
+def sample_count(lengths: np.ndarray, spacing: float = SAMPLE_SPACING) -> float:
+    """How many samples curves of these lengths (any shape) get: sum of floor(length / spacing),
+    as a float so that absurd lengths do not overflow."""
+    return float(np.sum(np.floor(np.asarray(lengths, dtype=np.float64) / spacing)))
 
 
 def sample_polyline(points: np.ndarray, spacing: float = SAMPLE_SPACING) -> np.ndarray:

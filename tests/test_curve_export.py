@@ -128,12 +128,12 @@ def test_export_formats(tmp_path, fmt):
 
 
 def write_emap_scene(root, world_to_gt):
-    """The smallest EMAP scene: one 4x4 view, and a world-to-ground-truth transform."""
+    """A small EMAP scene: one 8x8 view, and a world-to-ground-truth transform."""
     (root / "color").mkdir(parents=True)
-    cv2.imwrite(str(root / "color" / "0_colors.png"), np.zeros((4, 4, 3), np.uint8))
+    cv2.imwrite(str(root / "color" / "0_colors.png"), np.zeros((8, 8, 3), np.uint8))
     frame = {"rgb_path": "0_colors.png", "camtoworld": np.eye(4).tolist(),
-             "intrinsics": [[2.0, 0, 1.5], [0, 2.0, 1.5], [0, 0, 1]]}
-    meta = {"height": 4, "width": 4, "worldtogt": world_to_gt.tolist(), "frames": [frame]}
+             "intrinsics": [[4.0, 0, 3.5], [0, 4.0, 3.5], [0, 0, 1]]}
+    meta = {"height": 8, "width": 8, "worldtogt": world_to_gt.tolist(), "frames": [frame]}
     (root / "meta_data.json").write_text(json.dumps(meta))
 
 

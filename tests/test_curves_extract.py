@@ -20,6 +20,8 @@ from edgedog.curves.extract import extract_curves, extract_run
 from edgedog.curves.primitives import read_primitives
 from edgedog.errors import ConfigError, InputError
 from edgedog.scenes.camera import Camera, intrinsics, w2c_from_opengl_c2w
+from edgedog.train.config import TrainConfig
+from edgedog.train.run_folder import RunFolder, write_run
 
 NOISE = 0.002  # 2 mm per axis: about the noise of a well-trained run
 DIRECTION_NOISE = 10.0  # degrees
@@ -376,6 +378,7 @@ def test_cli_extract_on_ground_truth_primitives(abc_nef_scene_dir, tmp_path):
     directions = np.linalg.svd(neighbourhoods, full_matrices=False)[2][:, 0]
     write_primitives(tmp_path / "primitives.ply", gt + rng.normal(0, 0.002, gt.shape), directions, 0.8)
     (tmp_path / "log.json").write_text(json.dumps({"scene": str(abc_nef_scene_dir), "detector": "pidinet"}))
+    write_run(RunFolder(tmp_path, abc_nef_scene_dir, "paper", TrainConfig()))  # what makes it a run folder
     result = subprocess.run([sys.executable, "-m", "edgedog", "extract", tmp_path,
                              "--set", "filter_projection=false"], capture_output=True, text=True)
     assert result.returncode == 0, result.stderr

@@ -7,21 +7,25 @@ tests need no shared data.
 from __future__ import annotations
 
 import json
-import zlib
 from pathlib import Path
 
-import cv2
 import numpy as np
 import pytest
-from scene_builders import circle_c2ws
+from scene_builders import (
+    ANGLE_X,
+    SIZE,
+    make_colmap,
+    make_emap,
+    make_nerf,
+    make_neus,
+    nerf_meta,
+    write_json,
+    write_png,
+)
 
-from edgedog.errors import EdgeDogError, InputError
+from edgedog.errors import ConfigError, EdgeDogError, InputError
 from edgedog.scenes import detect_format, load_scene
 from edgedog.scenes.images import parse_background
-
-SIZE = 16  # width and height of the hand-made images
-ANGLE_X = 0.8  # camera_angle_x of the hand-made NeRF scenes
-
 
 # --- helpers -----------------------------------------------------------------------------------
 
@@ -38,92 +42,6 @@ def assert_one_line(err: BaseException, path: Path, *words: str) -> str:
     for word in words:
         assert word.lower() in message.lower(), f"{word!r} not in {message!r}"
     return message
-
-
-def write_png(path: Path, width: int = SIZE, height: int = SIZE, channels: int = 3) -> Path:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    rng = np.random.default_rng(zlib.crc32(path.name.encode()))
-    image = rng.integers(0, 256, (height, width, channels), dtype=np.uint8)
-    assert cv2.imwrite(str(path), image)
-    return path
-
-
-def write_json(path: Path, data) -> Path:
-    path.write_text(json.dumps(data, indent=1), encoding="utf-8")  # allows NaN, as Python does
-    return path
-
-
-def make_nerf(root: Path, frames: int = 3) -> Path:
-    """A valid NeRF/Blender scene: `train/r_<i>.png` and transforms_train.json."""
-    root.mkdir(parents=True, exist_ok=True)
-    meta = {"camera_angle_x": ANGLE_X, "frames": []}
-    for i, c2w in enumerate(circle_c2ws(frames)):
-        write_png(root / "train" / f"r_{i}.png")
-        meta["frames"].append({"file_path": f"./train/r_{i}", "transform_matrix": c2w.tolist()})
-    write_json(root / "transforms_train.json", meta)
-    return root
-
-
-def nerf_meta(root: Path) -> dict:
-    return json.loads((root / "transforms_train.json").read_text())
-
-
-def make_emap(root: Path, frames: int = 2) -> Path:
-    """A valid EMAP scene: color/<i>_colors.png and meta_data.json (OpenCV camera-to-world)."""
-    root.mkdir(parents=True, exist_ok=True)
-    K = [[20.0, 0.0, (SIZE - 1) / 2], [0.0, 20.0, (SIZE - 1) / 2], [0.0, 0.0, 1.0]]
-    meta = {"camera_model": "OPENCV", "height": SIZE, "width": SIZE, "frames": []}
-    for i, c2w_gl in enumerate(circle_c2ws(frames)):
-        write_png(root / "color" / f"{i}_colors.png")
-        c2w_cv = c2w_gl @ np.diag([1.0, -1.0, -1.0, 1.0])
-        meta["frames"].append(
-            {"rgb_path": f"{i}_colors.png", "camtoworld": c2w_cv.tolist(), "intrinsics": K}
-        )
-    write_json(root / "meta_data.json", meta)
-    return root
-
-
-def projection(c2w_gl: np.ndarray, focal: float = 20.0) -> np.ndarray:
-    """(4, 4) NeuS world_mat: K [R | t] padded with a last row [0, 0, 0, 1]."""
-    K = np.array([[focal, 0, (SIZE - 1) / 2], [0, focal, (SIZE - 1) / 2], [0, 0, 1]])
-    w2c = np.linalg.inv(c2w_gl @ np.diag([1.0, -1.0, -1.0, 1.0]))
-    P = np.eye(4)
-    P[:3, :4] = K @ w2c[:3, :4]
-    return P
-
-
-def make_neus(root: Path, frames: int = 2, skip_key: str | None = None) -> Path:
-    """A valid NeuS scene: image/<i>.png, mask/<i>.png and cameras_sphere.npz."""
-    root.mkdir(parents=True, exist_ok=True)
-    arrays = {}
-    for i, c2w in enumerate(circle_c2ws(frames)):
-        write_png(root / "image" / f"{i:03d}.png")
-        write_png(root / "mask" / f"{i:03d}.png", channels=1)
-        arrays[f"world_mat_{i}"] = projection(c2w)
-        arrays[f"scale_mat_{i}"] = np.eye(4)
-    arrays.pop(skip_key, None)
-    np.savez(root / "cameras_sphere.npz", **arrays)
-    return root
-
-
-def make_colmap(root: Path, model: str = "PINHOLE", params=None) -> Path:
-    """A COLMAP project: images/a.png and a text model in sparse/0 (one camera, one image)."""
-    pycolmap = pytest.importorskip("pycolmap")
-    rec = pycolmap.Reconstruction()
-    camera = pycolmap.Camera.create_from_model_name(1, model, 20.0, SIZE, SIZE)
-    if params is not None:
-        camera.params = np.asarray(params, dtype=np.float64)
-    rec.add_camera_with_trivial_rig(camera)
-    rotation = pycolmap.Rotation3d(np.eye(3))
-    rec.add_image_with_trivial_frame(
-        pycolmap.Image(name="a.png", camera_id=1, image_id=1),
-        pycolmap.Rigid3d(rotation, np.array([0.0, 0.0, 3.0])),
-    )
-    rec.add_point3D(np.array([0.1, 0.2, 0.3]), pycolmap.Track(), np.array([10, 20, 30], np.uint8))
-    write_png(root / "images" / "a.png")
-    (root / "sparse" / "0").mkdir(parents=True)
-    rec.write_text(str(root / "sparse" / "0"))
-    return root
 
 
 # --- the hand-made scenes are valid to begin with ---------------------------------------------
@@ -280,36 +198,56 @@ def test_nerf_non_rotation_matrix(tmp_path, kind):
 
 
 def test_nerf_image_of_wrong_size(tmp_path):
+    """Sizes are read from the headers when the scene loads: the odd image is named."""
     root = make_nerf(tmp_path / "scene")
     odd = write_png(root / "train" / "r_1.png", width=20, height=SIZE)
-    scene = load_scene(root)  # sizes are checked when the image is read
-    scene.load_image(0)
     with pytest.raises(InputError) as info:
-        scene.load_image(1)
+        load_scene(root)
     assert_one_line(info.value, odd, f"20x{SIZE}", f"{SIZE}x{SIZE}")
+
+
+@pytest.mark.parametrize("odd", [0, 2])
+def test_a_wrong_sized_image_is_named_even_when_it_comes_first(tmp_path, odd):
+    """ABC-NEF layout: the scene's size is most images' size, so a wrong-sized first image is
+    blamed, not the correct edge map it used to set the size for."""
+    root = make_nerf(tmp_path / "scene")
+    for i in range(3):
+        write_png(root / "train_img" / f"r_{i}.png", width=20 if i == odd else SIZE)
     with pytest.raises(InputError) as info:
-        scene.load_mask(1)
-    assert_one_line(info.value, odd, f"20x{SIZE}")
+        load_scene(root)
+    assert_one_line(info.value, root / "train_img" / f"r_{odd}.png", f"20x{SIZE}", f"{SIZE}x{SIZE}")
 
 
 def test_nerf_undecodable_image(tmp_path):
+    """A damaged image is listed when the scene loads and fails, named, when it is read."""
     root = make_nerf(tmp_path / "scene")
     broken = root / "train" / "r_2.png"
     broken.write_bytes(b"\x89PNG\r\n\x1a\n this is not really a png" * 4)
     scene = load_scene(root)
+    assert list(scene.damaged) == [broken] and "PNG" in scene.damaged[broken]
     with pytest.raises(InputError) as info:
         scene.load_image(2)
     assert_one_line(info.value, broken, "decoded")
 
 
-def test_nerf_undecodable_first_image_fails_at_load(tmp_path):
-    """The first image gives the scene's size, so a broken one fails when the scene loads."""
+def test_an_undecodable_first_image_does_not_set_the_scene_size(tmp_path):
     root = make_nerf(tmp_path / "scene")
     broken = root / "train" / "r_0.png"
     broken.write_bytes(b"garbage" * 10)
+    scene = load_scene(root)
+    assert scene.camera(1).width == SIZE and list(scene.damaged) == [broken]
+    with pytest.raises(InputError) as info:
+        scene.load_image(0)
+    assert_one_line(info.value, broken, "decoded")
+
+
+def test_a_scene_without_any_readable_image(tmp_path):
+    root = make_nerf(tmp_path / "scene")
+    for i in range(3):
+        (root / "train" / f"r_{i}.png").write_bytes(b"garbage")
     with pytest.raises(InputError) as info:
         load_scene(root)
-    assert_one_line(info.value, broken, "decoded")
+    assert_one_line(info.value, root / "transforms_train.json", "none of its 3 images")
 
 
 def test_nerf_image_deleted_after_load(tmp_path):
@@ -521,16 +459,23 @@ def test_parse_background_bad(text):
     assert "background" in message and repr(text) in message
 
 
-@pytest.mark.parametrize("downscale", [0, 1.5, -2])
+@pytest.mark.parametrize("downscale", [0, 1.5, -2, float("inf")])
 def test_load_scene_rejects_bad_downscale(tmp_path, downscale):
     root = make_nerf(tmp_path / "scene")
-    with pytest.raises(ValueError, match="downscale"):
+    with pytest.raises(ConfigError, match=f"^downscale {downscale}: must be a positive integer$"):
         load_scene(root, downscale=downscale)
 
 
 def test_load_scene_rejects_bad_downscale_before_touching_the_folder(tmp_path):
-    with pytest.raises(ValueError, match="downscale"):
-        load_scene(tmp_path / "missing", downscale=0)
+    with pytest.raises(ConfigError, match="--downscale 0"):
+        load_scene(tmp_path / "missing", downscale=0, setting="--downscale")
+
+
+def test_load_scene_rejects_a_downscale_that_leaves_no_pixels(tmp_path):
+    root = make_nerf(tmp_path / "scene")
+    assert load_scene(root, downscale=2).camera(0).width == SIZE // 2
+    with pytest.raises(ConfigError, match="^--downscale 3: .* 5 pixels across .* use at most 2$"):
+        load_scene(root, downscale=3, setting="--downscale")
 
 
 # --- values of the wrong type in the metadata are InputErrors naming the file ------------------
@@ -584,8 +529,3 @@ def test_wrongly_typed_values_are_input_errors(tmp_path, build):
     with pytest.raises(InputError) as info:
         load_scene(tmp_path / "scene")
     assert_one_line(info.value, offending)
-
-
-def test_load_scene_rejects_infinite_downscale(tmp_path):
-    with pytest.raises(ValueError, match="downscale"):
-        load_scene(make_nerf(tmp_path / "scene"), downscale=float("inf"))

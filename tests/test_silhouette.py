@@ -138,7 +138,7 @@ def dataclass_without_alpha(view, folder):
     image = cv2.imread(str(view.image_path), cv2.IMREAD_UNCHANGED)
     path = folder / f"{view.name}.png"
     cv2.imwrite(str(path), image[..., :3])
-    return dataclasses.replace(view, image_path=path, mask_path=None)
+    return dataclasses.replace(view, image_path=path, mask_path=None, alpha=False)
 
 
 def test_training_with_the_correction_logs_the_measured_offset(builtin_scene_dir, tmp_path):

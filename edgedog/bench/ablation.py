@@ -16,7 +16,7 @@ from edgedog.bench.tables import cell
 from edgedog.errors import ConfigError, InputError
 from edgedog.files import atomic_write_bytes, atomic_write_json, read_json
 from edgedog.train.config import TrainConfig
-from edgedog.train.run_folder import RunFolder, check_same_run, write_run
+from edgedog.train.run_folder import RunFolder, RunLock, check_same_run, write_run
 
 COMPONENTS = "components"
 WEIGHTING = "weighting"
@@ -125,15 +125,16 @@ def train_and_extract(run: RunFolder, progress: bool) -> tuple[dict, dict]:
 
     folder, config, log_path = run.path, run.config, run.path / "log.json"
     check_same_run(run)
-    if log_path.is_file() and (folder / REPORT).is_file():
-        return read_json(log_path), read_json(folder / REPORT)
-    scene = load_scene(run.scene, downscale=config.downscale)
-    if not log_path.is_file():
-        write_run(run)
-        Trainer(scene, config, folder, progress).run()
-    log = read_json(log_path)
-    # Extraction rewrites any report left by an earlier, unfinished run.
-    return log, extract_with_report(folder, scene, log["detector"])[1]
+    with RunLock.acquire(folder):
+        if log_path.is_file() and (folder / REPORT).is_file():
+            return read_json(log_path), read_json(folder / REPORT)
+        scene = load_scene(run.scene, downscale=config.downscale)
+        if not log_path.is_file():
+            write_run(run)
+            Trainer(scene, config, folder, progress).run()
+        log = read_json(log_path)
+        # Extraction rewrites any report left by an earlier, unfinished run.
+        return log, extract_with_report(folder, scene, log["detector"])[1]
 
 
 def run_ablation(scene_path: Path, out: Path, preset_name: str, base: TrainConfig,
@@ -141,8 +142,14 @@ def run_ablation(scene_path: Path, out: Path, preset_name: str, base: TrainConfi
                  keys: tuple[str, ...] | None = None) -> list[dict]:
     """Train and score every row of the chosen tables, or the rows with `keys` among them (runs
     shared where configs coincide) in out/<run name>/; `base` is the preset `preset_name` with
-    any overrides. Writes out/ablation.json and out/ablation.md; returns the rows' results."""
-    rows = select_rows(tables, keys)
+    any overrides. Writes out/ablation.json and out/ablation.md; returns the rows' results.
+    `out` is locked throughout: one bench writes its tables at a time."""
+    with RunLock.acquire(out):
+        return _run_rows(select_rows(tables, keys), scene_path, out, preset_name, base, progress)
+
+
+def _run_rows(rows: list[AblationRow], scene_path: Path, out: Path, preset_name: str, base: TrainConfig,
+              progress: bool) -> list[dict]:
     results = []
     for row in rows:
         config = effective_config(dataclasses.replace(base, **row.changes))

@@ -10,7 +10,7 @@ from pathlib import Path
 
 from edgedog.bench.ablation import train_and_extract
 from edgedog.bench.tables import cell
-from edgedog.edges.levels import Level
+from edgedog.edges.levels import Level, check_level_maps
 from edgedog.errors import InputError
 from edgedog.files import atomic_write_bytes, atomic_write_json, read_json
 from edgedog.train.config import TrainConfig
@@ -22,7 +22,7 @@ from edgedog.train.layered import (
     train_layered,
     write_layered,
 )
-from edgedog.train.run_folder import RunFolder
+from edgedog.train.run_folder import RunFolder, RunLock, check_new_run_folder
 
 DIRECT = "direct"
 
@@ -36,6 +36,7 @@ def layered_run(out: Path, scene_path: Path, preset_name: str, base: TrainConfig
             raise InputError(run.path, "holds a layered run of another scene, config or levels; "
                                        "choose another --out")
     else:
+        check_new_run_folder(run.path)
         write_layered(run)
     return run
 
@@ -50,10 +51,18 @@ def run_layers_bench(scene_path: Path, out: Path, preset_name: str, base: TrainC
                      levels: tuple[Level, ...], progress: bool = True, figure: bool = True) -> dict:
     """Train (or reuse) the layered run and the direct run, extract, score; write
     OUT/layers.json, OUT/layers.md and (with `figure`) OUT/layers.png. Returns the results."""
+    with RunLock.acquire(out):
+        return _layers_bench(scene_path, out, preset_name, base, levels, progress, figure)
+
+
+def _layers_bench(scene_path: Path, out: Path, preset_name: str, base: TrainConfig,
+                  levels: tuple[Level, ...], progress: bool, figure: bool) -> dict:
+    """`run_layers_bench` under the lock of `out`."""
     from edgedog.scenes import load_scene
 
+    scene = load_scene(scene_path.resolve(), downscale=base.downscale)
+    check_level_maps(levels, scene.detectors)
     run = layered_run(out, scene_path, preset_name, base, levels)
-    scene = load_scene(run.scene, downscale=base.downscale)
     train_layered(run, scene, progress=progress)
     report = extract_layered(run, scene)
     rows = [_row(name, s["primitives"], s) for name, s in report["selections"].items()]

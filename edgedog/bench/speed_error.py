@@ -26,7 +26,7 @@ from edgedog.bench.tables import cell
 from edgedog.errors import ConfigError, InputError
 from edgedog.files import atomic_write_bytes, atomic_write_json, read_json
 from edgedog.train.config import TrainConfig, preset, with_epochs, with_overrides
-from edgedog.train.run_folder import RunFolder, check_same_run, write_run
+from edgedog.train.run_folder import RunFolder, RunLock, check_same_run, write_run
 
 if TYPE_CHECKING:  # torch and the scene loaders load only when a bench runs
     from edgedog.scenes import Scene
@@ -178,12 +178,18 @@ def evaluate(trainer: Trainer, scene: Scene) -> EvalPoint:
 def run_budget(run: RunFolder, budget: str, evals: int, progress: bool) -> BudgetResult:
     """Train `run` (or resume it, or reuse it when every evaluation is recorded), evaluating it
     at `evals` evenly spaced epochs; returns its evaluations."""
+    check_same_run(run)
+    with RunLock.acquire(run.path):
+        return _train_budget(run, budget, evals, progress)
+
+
+def _train_budget(run: RunFolder, budget: str, evals: int, progress: bool) -> BudgetResult:
+    """`run_budget` under the run folder's lock."""
     from tqdm import tqdm
 
     from edgedog.scenes import load_scene
     from edgedog.train.trainer import CHECKPOINT, Trainer
 
-    check_same_run(run)
     eval_epochs = evaluation_epochs(run.config.epochs, evals)
     result = read_result(run.path, eval_epochs)
     if result is not None and result.finished:
@@ -217,10 +223,11 @@ def run_speed_error(scene_path: Path, out: Path, budgets: list[Budget], override
     write the summary files `SUMMARY` in `out` after each budget; returns the results."""
     scene_path = Path(scene_path).resolve()
     results = []
-    for budget in budgets:
-        run = RunFolder(out / budget.name, scene_path, budget.preset, budget.config(overrides))
-        results.append(run_budget(run, budget.name, evals, progress))
-        write_summary(out, scene_path.name, results)
+    with RunLock.acquire(out):
+        for budget in budgets:
+            run = RunFolder(out / budget.name, scene_path, budget.preset, budget.config(overrides))
+            results.append(run_budget(run, budget.name, evals, progress))
+            write_summary(out, scene_path.name, results)
     return results
 
 

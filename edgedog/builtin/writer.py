@@ -36,6 +36,7 @@ from edgedog.builtin.shapes import Part
 from edgedog.curve_files import EdgeCurves, write_ply
 from edgedog.edges.registry import make_detector
 from edgedog.errors import InputError
+from edgedog.files import create_folder
 from edgedog.groundtruth import GT_SPACING
 from edgedog.scenes.camera import OPENGL_TO_OPENCV, Camera
 from edgedog.scenes.images import as_rgb, to_u8, to_unit_float
@@ -80,9 +81,9 @@ def write_scene(folder: str | Path, part: Part, views: int = 50, size: int = 800
     kept = degrade.kept_views(views, degradations.keep_views, degrade.stream(seed, "views"))
     splits = {"train": ({int(i): train[i] for i in kept}, degradations),
               "val": (dict(enumerate(orbit_cameras(VAL_VIEWS, size, VAL_PHASE))), degrade.Degradations())}
-    folder.parent.mkdir(parents=True, exist_ok=True)
+    create_folder(folder.parent, named=folder)
     partial = folder.with_name(f".{folder.name}.{uuid.uuid4().hex[:8]}.partial")
-    partial.mkdir()  # not mkdtemp: the scene gets the usual permissions, not 0700
+    create_folder(partial, exist_ok=False, named=folder)  # not mkdtemp: the usual permissions, not 0700
     try:
         with Renderer(part.mesh, size, size) as renderer:
             for split, (cameras, spoil) in splits.items():

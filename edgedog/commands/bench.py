@@ -7,8 +7,33 @@ import json
 from pathlib import Path
 
 from edgedog.bench.ablation import TABLES, select_rows
+from edgedog.errors import ConfigError
 from edgedog.files import atomic_write_json
-from edgedog.train.config import PRESETS
+from edgedog.train.config import MAX_SEED, PRESETS, Range
+
+MAX_SIZE = 4096
+"""Image width and height in px: a 4K view (the datasets' largest are 1600 px)."""
+MAX_BENCH_PRIMITIVES = 100_000
+"""The torch reference keeps each tile's (pixels x primitives) matrices for its backward: about
+40 KB per primitive at 800 px (1.2 GB at the default 20,000), so about 5 GB at this bound."""
+MAX_VIEWS = 1000
+"""Views timed; each costs a forward, a backward and a Fisher pass."""
+
+
+def _integer(low: int, high: int):
+    """An argparse type: an integer in [low, high] (argparse names the option in its error)."""
+    bounds = Range(low, high)
+
+    def integer(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            value = None
+        if value is None or value not in bounds:
+            raise argparse.ArgumentTypeError(f"must be an integer {bounds}, got {text!r}")
+        return value
+
+    return integer
 
 
 def add_parser(subparsers) -> None:
@@ -17,19 +42,20 @@ def add_parser(subparsers) -> None:
     raster = kinds.add_parser("raster", help="rasterizer speed: C++ path against the torch reference",
                               description="Render 800x800 views of an ABC-like scene of thin primitives "
                                           "and time forward, backward and Fisher per view.")
-    raster.add_argument("--primitives", type=int, default=20000)
-    raster.add_argument("--size", type=int, default=800, help="image width and height")
-    raster.add_argument("--views", type=int, default=50)
-    raster.add_argument("--reference-views", type=int, default=1)
+    raster.add_argument("--primitives", type=_integer(1, MAX_BENCH_PRIMITIVES), default=20000)
+    raster.add_argument("--size", type=_integer(16, MAX_SIZE), default=800, help="image width and height")
+    raster.add_argument("--views", type=_integer(1, MAX_VIEWS), default=50)
+    raster.add_argument("--reference-views", type=_integer(1, MAX_VIEWS), default=1,
+                        help="views timed with the slow torch reference (at most --views)")
     raster.add_argument("--kernel", choices=("dog", "gaussian"), default="dog")
-    raster.add_argument("--seed", type=int, default=0)
+    raster.add_argument("--seed", type=_integer(0, MAX_SEED), default=0)
     raster.add_argument("--json", type=Path, default=None, help="also write the result here")
     raster.set_defaults(run=run_raster)
     edges = kinds.add_parser("edges", help="2D edge detectors' speed per megapixel",
                              description="Time every available detector on one image of the built-in "
                                          "scene (PiDiNet variants when their weights are found).")
-    edges.add_argument("--size", type=int, default=800, help="image width and height")
-    edges.add_argument("--repeats", type=int, default=3)
+    edges.add_argument("--size", type=_integer(16, MAX_SIZE), default=800, help="image width and height")
+    edges.add_argument("--repeats", type=_integer(1, 100), default=3)
     edges.add_argument("--weights", type=Path, default=None,
                        help="PiDiNet weights (default $EDGEDOG_PIDINET)")
     edges.add_argument("--json", type=Path, default=None, help="also write the result here")
@@ -111,6 +137,8 @@ def _report(result: dict, path: Path | None) -> None:
 def run_raster(args: argparse.Namespace) -> None:
     from edgedog.bench.raster import RasterBenchConfig, run, summary
 
+    if args.reference_views > args.views:
+        raise ConfigError(f"--reference-views {args.reference_views}: at most --views ({args.views})")
     result = run(RasterBenchConfig(args.primitives, args.size, args.views, args.reference_views, args.kernel,
                                    args.seed))
     _report(result, args.json)
@@ -119,7 +147,6 @@ def run_raster(args: argparse.Namespace) -> None:
 
 def run_ablation(args: argparse.Namespace) -> None:
     from edgedog.bench.ablation import markdown, run_ablation
-    from edgedog.errors import ConfigError
     from edgedog.train.config import preset, with_overrides
 
     tables = tuple(t.strip() for t in args.tables.split(",") if t.strip())

@@ -33,7 +33,7 @@ def run(args: argparse.Namespace) -> None:
     from edgedog.files import read_json
     from edgedog.scenes import load_scene
     from edgedog.train.config import preset
-    from edgedog.train.run_folder import RunFolder, check_same_run, config_digest, write_run
+    from edgedog.train.run_folder import RunFolder, RunLock, check_same_run, config_digest, write_run
     from edgedog.train.trainer import Trainer
 
     start = time.perf_counter()
@@ -45,15 +45,17 @@ def run(args: argparse.Namespace) -> None:
     out = args.out or (args.cache or default_cache()) / "runs" / f"demo-{folder.name}-{config_digest(config)}"
     run_folder = RunFolder(out, folder, "preview", config)
     check_same_run(run_folder)
-    write_run(run_folder)
     scene = load_scene(folder, downscale=config.downscale)
-    trainer = Trainer(scene, config, out, progress=not args.quiet)
-    if trainer.done and (out / "log.json").is_file():
-        print(f"reusing the finished demo run in {out}")
-    else:
-        trainer.run()
-    log = read_json(out / "log.json")
-    _, report = extract_with_report(out, scene, trainer.detector)
+    with RunLock.acquire(out):
+        check_same_run(run_folder)  # again under the lock
+        write_run(run_folder)
+        trainer = Trainer(scene, config, out, progress=not args.quiet)
+        if trainer.done and (out / "log.json").is_file():
+            print(f"reusing the finished demo run in {out}")
+        else:
+            trainer.run()
+        log = read_json(out / "log.json")
+        _, report = extract_with_report(out, scene, trainer.detector)
     print(f"scene      {folder} ({len(scene)} views, {trainer.detector} edge maps; "
           f"ready in {generated:.1f} s)")
     print(f"trained    {log['final_primitives']} primitives (from {log['initial_primitives']}) "

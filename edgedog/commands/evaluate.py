@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+import numpy as np
+
 from edgedog.curve_files import read_edges
 from edgedog.errors import InputError
 from edgedog.files import atomic_write_json
@@ -39,6 +41,8 @@ def score_file(pred: Path, gt_points, world_to_gt=None, voxelize: bool = True) -
     if world_to_gt is not None:
         curves = curves.transformed(world_to_gt)
     samples = curves.sample(SAMPLE_SPACING)
+    if not np.all(np.isfinite(samples)):  # the protocol's voxel grid would drop them silently
+        raise InputError(pred, "some points are not finite once mapped into the ground-truth frame")
     if len(samples) == 0:
         raise InputError(pred, "no edge samples to evaluate (empty, or every curve shorter than 5 mm)")
     return evaluate(samples, gt_points, voxelize=voxelize)

@@ -31,6 +31,7 @@ def run(args: argparse.Namespace) -> None:
     from edgedog.curve_files import read_edges, write_edges
     from edgedog.curves.extract import run_scene
     from edgedog.train.layered import is_layered, read_layered, selections
+    from edgedog.train.run_folder import RunLock
 
     folder, frame_run = args.run_dir, args.run_dir
     if is_layered(args.run_dir):
@@ -51,6 +52,10 @@ def run(args: argparse.Namespace) -> None:
     out = args.out or folder / f"curves_{args.frame}.{args.format}"
     if out.suffix.lower() != f".{args.format}":
         raise InputError(out, f"the file name must end in .{args.format} for --format {args.format}")
-    write_edges(out, curves)
+    if out.resolve().is_relative_to(args.run_dir.resolve()):
+        with RunLock.acquire(args.run_dir):
+            write_edges(out, curves)
+    else:
+        write_edges(out, curves)
     print(f"{curves.num_curves} curves ({len(curves.lines)} lines, {len(curves.beziers)} Béziers) "
           f"written to {out}")

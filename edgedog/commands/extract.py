@@ -42,14 +42,19 @@ def run(args: argparse.Namespace) -> None:
     from edgedog.curves.report import REPORT, extract_with_report
     from edgedog.train.config import with_overrides
     from edgedog.train.layered import is_layered
+    from edgedog.train.run_folder import RunLock, is_run_folder
 
     if not args.run_dir.is_dir():
         raise InputError(args.run_dir, "run folder not found")
     config = with_overrides(ExtractConfig(), args.overrides)
     if is_layered(args.run_dir):
-        return extract_layered_run(args.run_dir, config)
-    scene, detector = run_scene(args.run_dir, maps=config.filter_projection)
-    _, report = extract_with_report(args.run_dir, scene, detector, config)
+        with RunLock.acquire(args.run_dir):
+            return extract_layered_run(args.run_dir, config)
+    if not is_run_folder(args.run_dir):
+        raise InputError(args.run_dir, "is not an edgedog run folder (no config.json of ours)")
+    with RunLock.acquire(args.run_dir):
+        scene, detector = run_scene(args.run_dir, maps=config.filter_projection)
+        _, report = extract_with_report(args.run_dir, scene, detector, config)
     print_report(report)
     print(f"wrote {', '.join(OUTPUTS + (REPORT,))} in {args.run_dir}")
 

@@ -19,14 +19,21 @@ def add_parser(subparsers) -> None:
 
 
 def _masks(scene: Scene) -> str:
-    view = scene.views[0]
-    if view.mask_path is not None:
-        return f"files in {view.mask_path.parent.name}/"
-    return "from the images' alpha" if scene.load_mask(0) is not None else "none"
+    """Where the views' masks come from, and which views lack one when only some have one."""
+    masked = scene.masked_views
+    if not masked:
+        return "none"
+    view = scene.views[masked[0]]
+    source = "from the images' alpha" if view.mask_path is None else f"files in {view.mask_path.parent.name}/"
+    lacking = [view.name for view in scene.views if view.alpha is False and view.mask_path is None]
+    if not lacking:  # damaged images (alpha unknown) are listed on their own row
+        return source
+    listed = ", ".join(lacking[:5]) + (", ..." if len(lacking) > 5 else "")
+    return f"{source}, but none in {len(lacking)} of the {len(scene)} views ({listed})"
 
 
 def summary(scene: Scene) -> str:
-    """A few aligned lines describing the scene (reads one image, and the ground truth)."""
+    """A few aligned lines describing the scene (reads the ground truth, no image)."""
     cam = scene.camera(0)
     sizes = {(v.camera.width, v.camera.height) for v in scene.views}
     focal = np.mean([scene.camera(i).K[0, 0] for i in range(len(scene))])
@@ -42,6 +49,8 @@ def summary(scene: Scene) -> str:
         ("masks", _masks(scene)),
         ("bounds", f"[{lo[0]:.3f}, {lo[1]:.3f}, {lo[2]:.3f}] to [{hi[0]:.3f}, {hi[1]:.3f}, {hi[2]:.3f}]"),
     ]
+    for path, problem in scene.damaged.items():
+        rows.append(("damaged", f"{path}: {problem}"))
     if scene.sfm_points is not None:
         rows.append(("sfm points", f"{len(scene.sfm_points)}"))
     if scene.ground_truth is None:

@@ -4,12 +4,14 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 from pathlib import Path
 
 import numpy as np
 from plyfile import PlyData, PlyElement
 
 from edgedog.commands.scene_args import add_scene_options, open_scene
+from edgedog.errors import ConfigError
 from edgedog.files import atomic_write
 
 
@@ -38,9 +40,22 @@ def add_parser(subparsers) -> None:
     parser.set_defaults(run=run)
 
 
+def check_options(args: argparse.Namespace) -> None:
+    """ConfigErrors naming the option, before the scene is opened."""
+    from edgedog.train.config import MAX_PRIMITIVES
+
+    if not 1 <= args.uniform_count <= MAX_PRIMITIVES:
+        raise ConfigError(f"--uniform-count {args.uniform_count}: must be between 1 and {MAX_PRIMITIVES}")
+    if args.uniform_side is not None and not (math.isfinite(args.uniform_side) and args.uniform_side > 0):
+        raise ConfigError(f"--uniform-side {args.uniform_side}: must be a positive number")
+    if args.min_points < 0:
+        raise ConfigError(f"--min-points {args.min_points}: must not be negative")
+
+
 def run(args: argparse.Namespace) -> None:
     from edgedog.init import initialize
 
+    check_options(args)
     scene = open_scene(args.scene, args)
     points = initialize(scene, args.method, detector=args.detector, min_points=args.min_points,
                         uniform_count=args.uniform_count, uniform_side=args.uniform_side)

@@ -3,10 +3,16 @@
 from __future__ import annotations
 
 import argparse
+import math
 import time
 from pathlib import Path
 
 from edgedog.errors import ConfigError
+
+MAX_VIEWS = 1000
+"""Most training views: twenty times ABC-NEF's 50 (each view is rendered and written)."""
+MAX_SIZE = 4096
+"""Largest image side: five times ABC-NEF's 800 px, within every GPU's render target size."""
 
 
 def add_parser(subparsers) -> None:
@@ -22,10 +28,11 @@ def add_parser(subparsers) -> None:
     parser.add_argument("--shape", required=True, choices=list(SHAPES), metavar="NAME",
                         help="the part (see below)")
     parser.add_argument("--out", type=Path, required=True, help="scene folder to create (must not exist)")
-    parser.add_argument("--views", type=int, default=50, help="training views (default 50)")
+    parser.add_argument("--views", type=int, default=50,
+                        help=f"training views, at most {MAX_VIEWS} (default 50)")
     parser.add_argument("--size", type=int, default=800,
-                        help="image width and height in pixels; the focal length scales with it "
-                             "(default 800)")
+                        help=f"image width and height in pixels, 16 to {MAX_SIZE}; the focal length scales "
+                             "with it (default 800)")
     parser.add_argument("--seed", type=int, default=0,
                         help="draws the part's dimensions and the degradations (default 0)")
     parser.add_argument("--detector", default="auto",
@@ -51,11 +58,16 @@ def degradations_from(args: argparse.Namespace):
     """The degradations the options ask for; ConfigError for values out of range."""
     from edgedog.builtin.degrade import Degradations
 
-    if args.views < 1 or args.size < 16:
-        raise ConfigError(f"--views must be at least 1 and --size at least 16, "
-                          f"got {args.views} and {args.size}")
-    if min(args.image_noise, args.pose_noise_deg, args.pose_noise_mm) < 0:
-        raise ConfigError("noise levels must not be negative")
+    if not 1 <= args.views <= MAX_VIEWS:
+        raise ConfigError(f"--views {args.views}: must be between 1 and {MAX_VIEWS}")
+    if not 16 <= args.size <= MAX_SIZE:
+        raise ConfigError(f"--size {args.size}: must be between 16 and {MAX_SIZE} pixels")
+    if args.seed < 0:
+        raise ConfigError(f"--seed {args.seed}: must not be negative")
+    for option, value in (("--image-noise", args.image_noise), ("--pose-noise-deg", args.pose_noise_deg),
+                          ("--pose-noise-mm", args.pose_noise_mm)):
+        if not (math.isfinite(value) and value >= 0):
+            raise ConfigError(f"{option} {value}: noise levels must not be negative (nor NaN or infinite)")
     if not 0 <= args.drop_edges <= 1:
         raise ConfigError(f"--drop-edges is a fraction in [0, 1], got {args.drop_edges}")
     if args.keep_views is not None and not 1 <= args.keep_views <= args.views:

@@ -95,10 +95,15 @@ def run_scene(run_dir: Path, maps: bool = True) -> tuple[Scene, str]:
     used, computed ones found in the edge-map cache) and the name of those maps (from log.json)."""
     from edgedog.edges.cache import attach_edge_maps
 
-    log = read_json(run_dir / "log.json")
-    if not isinstance(log, dict) or "scene" not in log or "detector" not in log:
-        raise InputError(run_dir / "log.json", "expected 'scene' and 'detector' keys (from edgedog train)")
-    scene = load_scene(log["scene"], downscale=log.get("config", {}).get("downscale", 1))
+    path = run_dir / "log.json"
+    log = read_json(path)
+    if not (isinstance(log, dict) and all(isinstance(log.get(key), str) for key in ("scene", "detector"))):
+        raise InputError(path, "expected 'scene' and 'detector' strings (from edgedog train)")
+    config = log.get("config", {})
+    downscale = config.get("downscale", 1) if isinstance(config, dict) else None
+    if type(downscale) is not int or downscale < 1:
+        raise InputError(path, f"config.downscale must be a positive integer, got {downscale!r}")
+    scene = load_scene(log["scene"], downscale=downscale)
     if maps:
         attach_edge_maps(scene, log["detector"])
     return scene, log["detector"]

@@ -1,15 +1,19 @@
-"""Edge maps computed once per scene, detector and resolution, and reused.
+"""Edge maps computed once per scene content, detector and resolution, and reused.
 
-Maps go to `<scene>/edgedog_edges/<detector>/<fingerprint>_<W>x<H>/<view>.png` (8-bit), or under
-the user cache when the scene folder is read-only. Each map is written atomically and a
-`manifest.json` is written last: an interrupted run resumes where it stopped.
+Maps go to the user cache ($EDGEDOG_CACHE, else ~/.cache/edgedog), never into the scene folder
+(it is the user's, or a shared dataset's):
+`edges/<scene>-<path digest>/<detector>/<fingerprint>_<W>x<H>_<content>/<view>.png` (8-bit).
+`<content>` digests the images and cameras (`scene_fingerprint`) and the background RGBA images
+are composited on, so maps of images that changed since are never reused. Each map is written
+atomically, so every map in a folder is whole and belongs to its content: an interrupted run
+resumes where it stopped. `manifest.json`, written last, records what the folder holds (for
+people; the cache does not read it).
 """
 
 from __future__ import annotations
 
 import dataclasses
 import hashlib
-import os
 import time
 from pathlib import Path
 
@@ -18,29 +22,33 @@ import numpy as np
 from tqdm import tqdm
 
 from edgedog.edges.detector import EdgeDetector
-from edgedog.files import atomic_write, atomic_write_json, default_cache, read_json
+from edgedog.errors import InputError
+from edgedog.files import atomic_write, atomic_write_json, default_cache
 from edgedog.scenes import Scene
-from edgedog.scenes.images import to_u8
-
-CACHE_FOLDER = "edgedog_edges"
+from edgedog.scenes.fingerprint import scene_fingerprint
+from edgedog.scenes.images import Background, to_u8
 
 
 def cache_root(scene: Scene) -> Path:
-    """`<scene>/edgedog_edges` when writable, else a folder of the user cache for this scene.
-
-    A folder without any write permission bit counts as read-only even for root (who may write
-    anywhere): shared datasets are read in place and never written into.
-    """
-    if os.access(scene.root, os.W_OK) and scene.root.stat().st_mode & 0o222:
-        return scene.root / CACHE_FOLDER
+    """The user cache's folder for `scene`'s maps: one per scene folder (named after it and a
+    digest of its path), whatever its permissions."""
     digest = hashlib.sha1(str(scene.root).encode()).hexdigest()[:12]
     return default_cache() / "edges" / f"{scene.root.name}-{digest}"
 
 
-def maps_folder(scene: Scene, detector: EdgeDetector) -> Path:
+def content_key(fingerprint: str, background: Background) -> str:
+    """16 hex digits over what maps are computed from: a scene's images and cameras (its
+    `scene_fingerprint`) and the background its RGBA images are composited on."""
+    return hashlib.sha256(f"{fingerprint} {background}".encode()).hexdigest()[:16]
+
+
+def maps_folder(scene: Scene, detector: EdgeDetector, fingerprint: str | None = None) -> Path:
+    """Where `detector`'s maps of `scene` at its loaded resolution are kept (`fingerprint`: the
+    scene's, computed when not given)."""
     camera = scene.camera(0)
     safe_name = detector.name.replace(":", "-")
-    return cache_root(scene) / safe_name / f"{detector.fingerprint}_{camera.width}x{camera.height}"
+    content = content_key(fingerprint or scene_fingerprint(scene), scene.background)
+    return cache_root(scene) / safe_name / f"{detector.fingerprint}_{camera.width}x{camera.height}_{content}"
 
 
 def _write_png(path: Path, edge_map: np.ndarray) -> None:
@@ -82,26 +90,29 @@ def ensure_edge_maps(scene: Scene, detector: EdgeDetector, recompute: bool = Fal
     """
     if detector.name in scene.detectors and not recompute:
         return EdgeMapRun(detector.name, None, 0, 0.0, 0.0)
-    folder = maps_folder(scene, detector)
+    fingerprint = scene_fingerprint(scene)
+    folder = maps_folder(scene, detector, fingerprint)
+    paths = [folder / f"{view.name}.png" for view in scene.views]
+    missing = [i for i, path in enumerate(paths) if recompute or not path.is_file()]
+    for image in (scene.views[i].image_path for i in missing):
+        if image in scene.damaged:  # refused before any map is written
+            raise InputError(image, scene.damaged[image])
+    computed, seconds, pixels = 0, 0.0, 0
+    for index in tqdm(missing, desc=f"edges ({detector.name})", unit="view",
+                      disable=not progress or not missing):
+        image = scene.load_image(index)
+        start = time.perf_counter()
+        edge_map = detector.detect(image)
+        seconds += time.perf_counter() - start
+        pixels += image.shape[0] * image.shape[1]
+        _write_png(paths[index], edge_map)
+        computed += 1
     manifest = folder / "manifest.json"
-    complete = manifest.is_file() and read_json(manifest).get("views") == len(scene) and not recompute
-    paths, computed, seconds, pixels = [], 0, 0.0, 0
-    views = tqdm(range(len(scene)), desc=f"edges ({detector.name})", unit="view",
-                 disable=not progress or complete)
-    for index in views:
-        path = folder / f"{scene.views[index].name}.png"
-        if recompute or not (complete or path.is_file()):
-            image = scene.load_image(index)
-            start = time.perf_counter()
-            edge_map = detector.detect(image)
-            seconds += time.perf_counter() - start
-            pixels += image.shape[0] * image.shape[1]
-            _write_png(path, edge_map)
-            computed += 1
-        paths.append(path)
-    camera = scene.camera(0)
-    atomic_write_json(manifest, {"detector": detector.name, "fingerprint": detector.fingerprint,
-                                 "width": camera.width, "height": camera.height, "views": len(scene)})
+    if computed or not manifest.is_file():
+        camera = scene.camera(0)
+        atomic_write_json(manifest, {"detector": detector.name, "fingerprint": detector.fingerprint,
+                                     "scene": fingerprint, "background": scene.background,
+                                     "width": camera.width, "height": camera.height, "views": len(scene)})
     scene.views = [dataclasses.replace(view, edge_paths={**view.edge_paths, detector.name: path})
                    for view, path in zip(scene.views, paths)]
     return EdgeMapRun(detector.name, folder, computed, seconds, pixels / 1e6)

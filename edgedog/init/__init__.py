@@ -101,6 +101,11 @@ def initialize(scene: Scene, method: str = "auto", workdir: Path | None = None,
             return finish(result, f"the scene's SfM points give {len(result)} points "
                                   f"(>= {min_points})", attempts)
 
+    count = len(scene) if views is None else len(views)
+    if count < 2:  # nothing to match
+        if method == "triangulate":
+            raise InputError(scene.root, f"triangulation needs at least 2 views; the scene has {count}")
+        return uniform(f"triangulation needs at least 2 views, and the scene has {count}", attempts)
     with tempfile.TemporaryDirectory(prefix="edgedog-init-") as temporary:
         folder = Path(workdir) if workdir is not None else Path(temporary)
         folder.mkdir(parents=True, exist_ok=True)

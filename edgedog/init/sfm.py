@@ -15,7 +15,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from edgedog.errors import InputError
+from edgedog.errors import InputError, OutputError
+from edgedog.files import create_folder
 from edgedog.init.triangulate import COLMAP_SUFFIXES, colmap_log_level
 
 MATCHERS = ("exhaustive", "sequential")
@@ -115,8 +116,11 @@ def run_sfm(photos: Path, out: Path, max_image_size: int = 1600,
     names = _photos(photos)
     _check_out(out)
     sizes = _sizes(photos, names)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    temporary = Path(tempfile.mkdtemp(prefix=f".{out.name}.partial-", dir=out.parent))
+    create_folder(out.parent, named=out)
+    try:
+        temporary = Path(tempfile.mkdtemp(prefix=f".{out.name}.partial-", dir=out.parent))
+    except OSError as exc:
+        raise OutputError(out, f"cannot create the folder ({exc.strerror or exc})") from None
     started = time.perf_counter()
     try:
         database = temporary / "database.db"

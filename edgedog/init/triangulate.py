@@ -87,14 +87,15 @@ def _prepare_images(scene: Scene, views: list[int], image_dir: Path) -> dict[str
     names: dict[str, Camera] = {}
     for index in views:
         view = scene.views[index]
+        stem = f"{index:05d}_{view.name.replace('/', '_')}"  # one folder: COLMAP rig names hold a '/'
         if _needs_conversion(view.image_path, view.camera):
-            name = f"{index:05d}_{view.name}.png"
+            name = f"{stem}.png"
             rgb = np.clip(np.rint(scene.load_image(index) * 255.0), 0, 255).astype(np.uint8)
             if not cv2.imwrite(str(image_dir / name), cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR)):
                 raise OSError(f"could not write {image_dir / name}")
             names[name] = scene.camera(index)
         else:
-            name = f"{index:05d}_{view.name}{view.image_path.suffix.lower()}"
+            name = f"{stem}{view.image_path.suffix.lower()}"
             os.symlink(view.image_path.resolve(), image_dir / name)
             names[name] = view.camera
     return names

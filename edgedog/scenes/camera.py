@@ -122,24 +122,59 @@ def intrinsics(fx: float, fy: float, cx: float, cy: float) -> np.ndarray:
     return np.array([[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]])
 
 
+MAX_CAMERA_DISTANCE = 1e6
+"""Farthest a camera may be from the world origin, in scene units. Training works in float32 (7
+significant digits): a scene whose cameras lie farther out cannot resolve its object (re-centre
+it), and a pose of 1e30 is garbage."""
+
+FIELD_OF_VIEW_DEG = (0.01, 170.0)
+"""Range of a pinhole camera's field of view across the image, in degrees: wider than 170 or
+narrower than 0.01 (a 10000 mm lens on a full-frame sensor gives 0.2) is a broken focal length."""
+
+
 def pose_problem(matrix: np.ndarray) -> str | None:
-    """Why a (4, 4) or (3, 4) pose is unusable, or None when it is a proper rigid transform."""
+    """Why a (4, 4) or (3, 4) pose (world-to-camera or camera-to-world) is unusable, or None when
+    it is a proper rigid transform: a rotation, a last row 0 0 0 1 and a camera centre within
+    MAX_CAMERA_DISTANCE of the origin."""
     if matrix.shape not in ((4, 4), (3, 4)):
         return f"pose has shape {matrix.shape}, expected 4x4"
     if not np.all(np.isfinite(matrix)):
         return "pose contains NaN or Inf"
+    if matrix.shape == (4, 4) and not np.allclose(matrix[3], [0.0, 0.0, 0.0, 1.0], rtol=0, atol=1e-6):
+        return f"pose's last row is {matrix[3].tolist()}, expected [0, 0, 0, 1]"
     R = matrix[:3, :3]
     if not np.allclose(R @ R.T, np.eye(3), atol=1e-3) or np.linalg.det(R) < 0:
         return "pose rotation is not a proper rotation (orthonormal, det +1)"
+    # |t| is the camera centre's distance from the origin for both directions of a rigid pose.
+    distance = float(np.linalg.norm(matrix[:3, 3]))
+    if distance > MAX_CAMERA_DISTANCE:
+        return (f"camera is {distance:.3g} units from the origin, more than {MAX_CAMERA_DISTANCE:.0e}: "
+                "float32 training cannot resolve such a scene (re-centre it)")
     return None
 
 
-def intrinsics_problem(K: np.ndarray) -> str | None:
-    """Why an intrinsics matrix is unusable, or None."""
+def intrinsics_problem(K: np.ndarray, width: int, height: int) -> str | None:
+    """Why the intrinsics of a `width` x `height` image are unusable, or None: they must be a
+    finite upper-triangular matrix with last row 0 0 1, positive focal lengths giving a field of
+    view within FIELD_OF_VIEW_DEG, a skew smaller than the focal length, and a principal point
+    within one image size of the image."""
     if K.shape != (3, 3):
         return f"intrinsics have shape {K.shape}, expected 3x3"
     if not np.all(np.isfinite(K)):
         return "intrinsics contain NaN or Inf"
+    if not np.allclose([K[1, 0], *K[2]], [0.0, 0.0, 0.0, 1.0], rtol=0, atol=1e-6):
+        return f"intrinsics {K.tolist()} are not of the form [[fx, s, cx], [0, fy, cy], [0, 0, 1]]"
     if K[0, 0] <= 0 or K[1, 1] <= 0:
         return "focal lengths must be positive"
+    low, high = FIELD_OF_VIEW_DEG
+    for axis, focal, pixels in (("x", K[0, 0], width), ("y", K[1, 1], height)):
+        degrees = float(np.degrees(2 * np.arctan(pixels / (2 * focal))))
+        if not low <= degrees <= high:
+            return (f"focal length f{axis}={focal:.6g} px gives a {degrees:.4g} degree field of view "
+                    f"over {pixels} px (a pinhole camera's lies between {low} and {high})")
+    if abs(K[0, 1]) > K[0, 0]:
+        return f"skew {K[0, 1]:.6g} is larger than the focal length"
+    cx, cy = K[0, 2], K[1, 2]
+    if not (-width <= cx <= 2 * width and -height <= cy <= 2 * height):
+        return f"principal point ({cx:.6g}, {cy:.6g}) lies far outside the {width}x{height} image"
     return None

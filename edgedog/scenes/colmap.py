@@ -12,7 +12,14 @@ import numpy as np
 
 from edgedog.errors import InputError
 from edgedog.scenes.camera import intrinsics
-from edgedog.scenes.common import bounds_from_cameras, checked_camera, edge_folders, edge_maps_for
+from edgedog.scenes.common import (
+    bounds_from_cameras,
+    check_view_count,
+    checked_camera,
+    edge_folders,
+    edge_maps_for,
+    metadata_errors,
+)
 from edgedog.scenes.scene import Scene, View
 
 MODEL_FILES = ("cameras", "images", "points3D")
@@ -57,27 +64,37 @@ def load_colmap(root: Path) -> Scene:
         raise InputError(root, "no COLMAP sparse model (cameras, images, points3D)")
     try:
         model = pycolmap.Reconstruction(str(model_path))
-    except ValueError as exc:
-        raise InputError(model_path, f"unreadable COLMAP model ({str(exc).splitlines()[0]})") from None
+    except Exception as exc:  # pycolmap raises ValueError, IndexError (unknown ids), RuntimeError...
+        first_line = (str(exc).splitlines() or [type(exc).__name__])[0]
+        raise InputError(model_path, f"unreadable COLMAP model ({first_line})") from None
     image_folder = root / "images"
     folders = edge_folders(root)
-    views = []
-    for image_id in sorted(model.reg_image_ids()):
-        image = model.image(image_id)
-        camera = model.camera(image.camera_id)
-        K = _pinhole(camera, model_path)
-        w2c = np.eye(4)
-        w2c[:3, :4] = image.cam_from_world().matrix()
-        where = f"image {image.name}"
-        cam = checked_camera(K, w2c, camera.width, camera.height, model_path, where)
-        stem = Path(image.name).stem
-        views.append(View(stem, cam, image_folder / image.name, edge_maps_for(stem, folders)))
+    image_ids = sorted(model.reg_image_ids())
+    check_view_count(len(image_ids), model_path)
+    with metadata_errors(model_path):
+        views = [_view(model, image_id, model_path, image_folder, folders) for image_id in image_ids]
     if not views:
         raise InputError(model_path, "the model has no registered images")
     points = np.array([p.xyz for p in model.points3D.values()], dtype=np.float64).reshape(-1, 3)
     colors = np.array([p.color for p in model.points3D.values()], dtype=np.uint8).reshape(-1, 3)
+    if not np.all(np.isfinite(points)):
+        raise InputError(model_path, "points3D contains NaN or Inf coordinates")
     return Scene(root=root, format="colmap", views=views, bounds=points_bounds(points, views),
                  sfm_points=points, sfm_colors=colors)
+
+
+def _view(model, image_id: int, model_path: Path, image_folder: Path, folders: dict[str, Path]) -> View:
+    """The view of one registered image of a pycolmap.Reconstruction."""
+    image = model.image(image_id)
+    camera = model.camera(image.camera_id)
+    K = _pinhole(camera, model_path)
+    w2c = np.eye(4)
+    w2c[:3, :4] = image.cam_from_world().matrix()
+    where = f"image {image.name}"
+    cam = checked_camera(K, w2c, camera.width, camera.height, model_path, where)
+    # The name keeps the image's sub-folder: rigs store cam1/0001.png beside cam2/0001.png.
+    name = Path(image.name).with_suffix("").as_posix()
+    return View(name, cam, image_folder / image.name, edge_maps_for(name, folders))
 
 
 def points_bounds(points: np.ndarray, views: list[View], padding: float = 0.1) -> np.ndarray:

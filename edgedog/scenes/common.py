@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+import dataclasses
+import os
+from collections import Counter
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
@@ -11,8 +14,17 @@ import numpy as np
 
 from edgedog.errors import InputError
 from edgedog.scenes.camera import Camera, intrinsics_problem, pose_problem
+from edgedog.scenes.images import MAX_IMAGE_PIXELS, image_info
+from edgedog.scenes.scene import Scene
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".exr", ".webp")
+
+MAX_VIEWS = 10_000
+"""Most views a scene may have: ten times the largest object captures (DTU has 49 to 64 views,
+ABC-NEF 50); training keeps every view's edge map in memory."""
+
+ALLOW_OUTSIDE = "EDGEDOG_ALLOW_OUTSIDE_FILES"
+"""Environment variable: set to 1 to let a scene's metadata name files outside its folder."""
 
 
 @contextmanager
@@ -40,15 +52,101 @@ def matrix(value: Any, shape: tuple[int, ...], path: Path, what: str) -> np.ndar
     return array
 
 
-def checked_camera(K: np.ndarray, w2c: np.ndarray, width: int, height: int,
-                   path: Path, what: str) -> Camera:
-    """Build a Camera after checking that intrinsics and pose are usable."""
-    problem = intrinsics_problem(K) or pose_problem(w2c)
+def checked_camera(K: np.ndarray, pose: np.ndarray, width: int, height: int, path: Path, what: str,
+                   to_w2c: Callable[[np.ndarray], np.ndarray] | None = None) -> Camera:
+    """Build a Camera after checking that its image size, intrinsics and pose are usable.
+
+    Args:
+        K: (3, 3) intrinsics for a `width` x `height` image.
+        pose: (4, 4) the pose as the file gives it (checked as given: its last row counts).
+        path, what: the file and the entry (e.g. "frame 3") an error names.
+        to_w2c: turns `pose` into the world-to-camera matrix (default: it is one).
+    """
+    if not (0 < width and 0 < height and width * height <= MAX_IMAGE_PIXELS):
+        raise InputError(path, f"{what}: image size {width}x{height} is not between 1 pixel and "
+                               f"{MAX_IMAGE_PIXELS / 1e6:.0f} megapixels")
+    problem = intrinsics_problem(K, width, height) or pose_problem(pose)
     if problem:
         raise InputError(path, f"{what}: {problem}")
-    if width <= 0 or height <= 0:
-        raise InputError(path, f"{what}: image size {width}x{height} is not positive")
+    w2c = pose if to_w2c is None else to_w2c(pose)
     return Camera(K=K, w2c=w2c, width=int(width), height=int(height))
+
+
+def check_view_count(count: int, path: Path) -> None:
+    """An InputError naming `path` when it lists more than MAX_VIEWS views."""
+    if count > MAX_VIEWS:
+        raise InputError(path, f"{count} views, more than the {MAX_VIEWS} a scene may have")
+
+
+def resolved(path: Path) -> Path:
+    """`path` with every symlink followed; a symlink loop is an InputError naming it."""
+    try:
+        return path.resolve()
+    except (RuntimeError, OSError):  # Python 3.11 raises RuntimeError for a loop, later ones OSError
+        raise InputError(path, "cannot be resolved: a symlink loop") from None
+
+
+def outside_files_allowed() -> bool:
+    return os.environ.get(ALLOW_OUTSIDE, "") not in ("", "0")
+
+
+def confine_files(scene: Scene) -> None:
+    """Refuse a scene whose images, masks or edge maps lie outside its folder once symlinks are
+    followed (metadata may name any path: `/etc/passwd`, `../../x`), unless ALLOW_OUTSIDE is set.
+    The scene's root is resolved already, so a symlinked scene folder itself is fine."""
+    if outside_files_allowed():
+        return
+    for view in scene.views:
+        files = [view.image_path, view.mask_path, *view.edge_paths.values()]
+        for path in (p for p in files if p is not None):
+            target = resolved(path)
+            if not target.is_relative_to(scene.root):
+                link = f" (that is {target})" if target != path else ""
+                raise InputError(scene.root, f"view '{view.name}' names {path}{link}, which lies outside "
+                                             f"the scene folder (set {ALLOW_OUTSIDE}=1 to allow it)")
+
+
+def majority_size(paths: list[Path], source: Path) -> tuple[int, int]:
+    """(width, height) of most of the images (read from their headers): the scene's image size
+    when its metadata gives none. An image of another size is named by `inspect_images`."""
+    sizes = Counter()
+    for path in paths:
+        try:
+            info = image_info(path)
+        except InputError:  # missing or damaged: `inspect_images` reports it
+            continue
+        sizes[info.width, info.height] += 1
+    if not sizes:
+        raise InputError(source, f"none of its {len(paths)} images can be read")
+    return sizes.most_common(1)[0][0]
+
+
+def inspect_images(scene: Scene) -> Scene:
+    """The scene with each view's `alpha` known and its damaged images listed, after checking,
+    from the files' headers (nothing is decoded), that every image exists and has its camera's
+    size: an odd image is named here rather than the edge map it is later compared with.
+
+    A damaged image (cut short, undecodable) does not stop the scene from loading: it fails
+    with an InputError naming it when it is read, and `Scene.damaged` lists it (a scene that
+    ships edge maps may train without ever reading its images).
+    """
+    views, damaged = [], {}
+    for view in scene.views:
+        if not view.image_path.is_file():
+            raise InputError(view.image_path, f"image of view '{view.name}' not found")
+        try:
+            info = image_info(view.image_path)
+        except InputError as error:
+            damaged[view.image_path] = error.problem
+            views.append(view)
+            continue
+        camera = view.camera
+        if (info.width, info.height) != (camera.width, camera.height):
+            raise InputError(view.image_path, f"image is {info.width}x{info.height} pixels but its camera "
+                                              f"is {camera.width}x{camera.height} (the size the scene's "
+                                              "metadata or most of its images give)")
+        views.append(dataclasses.replace(view, alpha=info.alpha))
+    return dataclasses.replace(scene, views=views, damaged=damaged)
 
 
 def find_image(folder: Path, stem: str) -> Path | None:

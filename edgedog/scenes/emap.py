@@ -13,8 +13,9 @@ import numpy as np
 from edgedog.errors import InputError
 from edgedog.files import read_json
 from edgedog.groundtruth import find_ground_truth
-from edgedog.scenes.camera import rigid_inverse
+from edgedog.scenes.camera import MAX_CAMERA_DISTANCE, rigid_inverse
 from edgedog.scenes.common import (
+    check_view_count,
     checked_camera,
     edge_folders,
     edge_maps_for,
@@ -40,12 +41,14 @@ def load_emap(root: Path) -> Scene:
     if meta.get("camera_model", "OPENCV") not in ("OPENCV", "PINHOLE"):
         raise InputError(meta_path, f"unsupported camera_model {meta['camera_model']!r}")
     with metadata_errors(meta_path):
+        check_view_count(len(meta["frames"]), meta_path)
         views = _views(root, meta_path, meta)
         world_to_gt = matrix(meta.get("worldtogt", np.eye(4).tolist()), (4, 4), meta_path, "worldtogt")
         aabb = matrix(meta.get("scene_box", {}).get("aabb", [[-1] * 3, [1] * 3]), (2, 3), meta_path,
                       "scene_box.aabb")
-    if not np.all(np.isfinite(world_to_gt)):
-        raise InputError(meta_path, "worldtogt contains NaN or Inf")
+    problem = _similarity_problem(world_to_gt) or _box_problem(aabb)
+    if problem:
+        raise InputError(meta_path, problem)
     return Scene(
         root=root,
         format="emap",
@@ -69,6 +72,27 @@ def _views(root: Path, meta_path: Path, meta: dict) -> list[View]:
         image_path = find_image(root / "color", stem) or root / "color" / frame["rgb_path"]
         c2w = matrix(frame["camtoworld"], (4, 4), meta_path, f"{where} camtoworld")
         K = matrix(frame["intrinsics"], (3, 3), meta_path, f"{where} intrinsics")
-        camera = checked_camera(K, rigid_inverse(c2w), width, height, meta_path, where)
+        camera = checked_camera(K, c2w, width, height, meta_path, where, to_w2c=rigid_inverse)
         views.append(View(stem, camera, image_path, edge_maps_for(stem, folders)))
     return views
+
+
+def _similarity_problem(world_to_gt: np.ndarray) -> str | None:
+    """Why `worldtogt` cannot map predictions into the ground-truth frame (it is a scale and a
+    shift, possibly a rotation: finite, last row 0 0 0 1, invertible), or None."""
+    if not np.all(np.isfinite(world_to_gt)):
+        return "worldtogt contains NaN or Inf"
+    if not np.allclose(world_to_gt[3], [0.0, 0.0, 0.0, 1.0], rtol=0, atol=1e-6):
+        return f"worldtogt's last row is {world_to_gt[3].tolist()}, expected [0, 0, 0, 1]"
+    if abs(np.linalg.det(world_to_gt[:3, :3])) < 1e-12:
+        return "worldtogt is not invertible"
+    return None
+
+
+def _box_problem(aabb: np.ndarray) -> str | None:
+    """Why `scene_box.aabb` (2, 3) [min, max] is not a box around the object, or None."""
+    if not np.all(np.isfinite(aabb)) or not np.all(aabb[0] < aabb[1]):
+        return f"scene_box.aabb {aabb.tolist()} is not [min, max] with finite min < max"
+    if np.abs(aabb).max() > MAX_CAMERA_DISTANCE:
+        return f"scene_box.aabb {aabb.tolist()} reaches beyond {MAX_CAMERA_DISTANCE:.0e} units"
+    return None

@@ -8,6 +8,7 @@ transforms file names their detector in an `edge_detector` entry (as edgedog's o
 from __future__ import annotations
 
 import math
+import os
 from pathlib import Path
 from typing import Any
 
@@ -19,14 +20,16 @@ from edgedog.groundtruth import find_ground_truth
 from edgedog.scenes.camera import intrinsics, w2c_from_opengl_c2w
 from edgedog.scenes.common import (
     bounds_from_cameras,
+    check_view_count,
     checked_camera,
     edge_folders,
     edge_maps_for,
     find_image,
+    majority_size,
     matrix,
     metadata_errors,
+    resolved,
 )
-from edgedog.scenes.images import read_raw
 from edgedog.scenes.scene import Scene, View
 
 NEF_DETECTOR = "pidinet"
@@ -39,7 +42,7 @@ def is_nerf(root: Path) -> bool:
 
 def _resolve(root: Path, file_path: str, transforms: Path) -> Path:
     """A frame's `file_path` (suffix optional) -> existing file."""
-    path = (root / file_path).resolve() if not Path(file_path).is_absolute() else Path(file_path)
+    path = resolved(root / file_path)  # an absolute file_path stays as it is
     if path.is_file():
         return path
     found = find_image(path.parent, path.name)
@@ -83,6 +86,7 @@ def load_nerf(root: Path, split: str = "train") -> Scene:
     frames = meta.get("frames") if isinstance(meta, dict) else None
     if not frames:
         raise InputError(transforms, "no 'frames' list")
+    check_view_count(len(frames), transforms)
     with metadata_errors(transforms):
         views = _views(root, transforms, meta)
     return Scene(
@@ -95,31 +99,43 @@ def load_nerf(root: Path, split: str = "train") -> Scene:
 
 
 def _views(root: Path, transforms: Path, meta: dict[str, Any]) -> list[View]:
-    extra_edges = edge_folders(root)
-    views: list[View] = []
-    size: tuple[int, int] | None = None
-    for number, frame in enumerate(meta["frames"]):
+    folders = edge_folders(root)
+    files = [_frame_files(root, transforms, meta, frame, f"frame {number}", folders)
+             for number, frame in enumerate(meta["frames"])]
+    if "w" in meta and "h" in meta:
+        size = (int(meta["w"]), int(meta["h"]))
+    else:  # all frames share one size: most images' (an odd image is named when the scene loads)
+        size = majority_size([image for _, image, _ in files], transforms)
+    views = []
+    for number, (frame, (listed, image_path, edges)) in enumerate(zip(meta["frames"], files)):
         where = f"frame {number}"
-        if "file_path" not in frame or "transform_matrix" not in frame:
-            raise InputError(transforms, f"{where} lacks file_path or transform_matrix")
-        listed = _resolve(root, frame["file_path"], transforms)
-        image_folder = listed.parent.with_name(listed.parent.name + "_img")
-        if image_folder.is_dir():  # ABC-NEF: the listed file is the edge map
-            image_path = find_image(image_folder, listed.stem)
-            if image_path is None:
-                raise InputError(image_folder, f"no image {listed.stem}.* for {where}")
-            edges = {str(meta.get("edge_detector", NEF_DETECTOR)).lower(): listed}
-        else:
-            image_path, edges = listed, {}
-        edges.update(edge_maps_for(listed.stem, extra_edges))
-        if "w" in meta and "h" in meta:
-            size = (int(meta["w"]), int(meta["h"]))
-        elif size is None:  # all frames share the first image's size; each load checks it
-            height, width = read_raw(image_path).shape[:2]
-            size = (width, height)
-        width, height = size
         c2w = matrix(frame["transform_matrix"], (4, 4), transforms, f"{where} transform_matrix")
-        K = _intrinsics(meta, frame, width, height, transforms, where)
-        camera = checked_camera(K, w2c_from_opengl_c2w(c2w), width, height, transforms, where)
+        K = _intrinsics(meta, frame, *size, transforms, where)
+        camera = checked_camera(K, c2w, *size, transforms, where, to_w2c=w2c_from_opengl_c2w)
         views.append(View(name=listed.stem, camera=camera, image_path=image_path, edge_paths=edges))
     return views
+
+
+def _frame_files(root: Path, transforms: Path, meta: dict[str, Any], frame: dict[str, Any], where: str,
+                 folders: dict[str, Path]) -> tuple[Path, Path, dict[str, Path]]:
+    """(the file `file_path` names, the view's image, its edge maps {detector: file}, those of
+    the scene's `edge_<Detector>/` folders included).
+
+    In the ABC-NEF layout the named file is an edge map and the image lies in the sibling
+    folder `<folder>_img/` under the same name.
+    """
+    if "file_path" not in frame or "transform_matrix" not in frame:
+        raise InputError(transforms, f"{where} lacks file_path or transform_matrix")
+    listed = _resolve(root, frame["file_path"], transforms)
+    image_folder = listed.parent.with_name(listed.parent.name + "_img")
+    if image_folder.is_dir():
+        image_path = find_image(image_folder, listed.stem)
+        if image_path is None:
+            raise InputError(image_folder, f"no image {listed.stem}.* for {where}")
+        edges = {str(meta.get("edge_detector", NEF_DETECTOR)).lower(): listed}
+    elif os.path.lexists(image_folder):  # a file, a broken link or a loop: not plain NeRF either
+        raise InputError(image_folder, "is not a folder (a file, a broken symlink or a symlink loop), "
+                                       "where an ABC-NEF scene keeps its images")
+    else:
+        image_path, edges = listed, {}
+    return listed, image_path, {**edges, **edge_maps_for(listed.stem, folders)}

@@ -14,11 +14,21 @@ import numpy as np
 
 from edgedog.errors import InputError
 from edgedog.scenes.camera import Camera
-from edgedog.scenes.common import IMAGE_SUFFIXES, checked_camera, edge_folders, edge_maps_for, matrix
-from edgedog.scenes.images import read_raw
+from edgedog.scenes.common import (
+    IMAGE_SUFFIXES,
+    check_view_count,
+    checked_camera,
+    edge_folders,
+    edge_maps_for,
+    majority_size,
+    matrix,
+)
 from edgedog.scenes.scene import Scene, View
 
 CAMERAS_FILE = "cameras_sphere.npz"
+MAX_ARRAY_BYTES = 1 << 20
+"""Largest array of the cameras archive, unpacked: its matrices are 4x4 (128 bytes); a bigger
+entry is not a camera, and a small archive may unpack to gigabytes."""
 
 
 def is_neus(root: Path) -> bool:
@@ -52,19 +62,15 @@ def _sorted_images(folder: Path) -> list[Path]:
 def load_neus(root: Path) -> Scene:
     """Load a NeuS/IDR scene folder."""
     cameras_path = root / CAMERAS_FILE
-    if not zipfile.is_zipfile(cameras_path):
-        raise InputError(cameras_path, "not a .npz (zip) archive")
-    try:
-        cameras = dict(np.load(cameras_path))
-    except Exception as exc:  # numpy and zipfile raise several types for a damaged archive
-        raise InputError(cameras_path, f"damaged .npz archive ({type(exc).__name__}: {exc})") from None
     images = _sorted_images(root / "image")
     if not images:
         raise InputError(root / "image", "no images found")
+    check_view_count(len(images), root / "image")
     masks = _sorted_images(root / "mask")
     if masks and len(masks) != len(images):
         raise InputError(root / "mask", f"{len(masks)} masks for {len(images)} images")
-    height, width = read_raw(images[0]).shape[:2]
+    cameras = _read_cameras(cameras_path, len(images))
+    width, height = majority_size(images, root / "image")
     folders = edge_folders(root)
     views = []
     for i, image_path in enumerate(images):
@@ -78,3 +84,24 @@ def load_neus(root: Path) -> Scene:
                           masks[i] if masks else None))
     return Scene(root=root, format="neus", views=views,
                  bounds=np.array([[-1.0, -1.0, -1.0], [1.0, 1.0, 1.0]]))
+
+
+def _read_cameras(path: Path, count: int) -> dict[str, np.ndarray]:
+    """The `world_mat_<i>` and `scale_mat_<i>` arrays of the first `count` views.
+
+    The archive is data, never code: numpy refuses its object arrays (allow_pickle=False), and
+    an entry that unpacks to more than MAX_ARRAY_BYTES is refused before it is read.
+    """
+    if not zipfile.is_zipfile(path):
+        raise InputError(path, "not a .npz (zip) archive")
+    wanted = {f"{kind}_{i}" for kind in ("world_mat", "scale_mat") for i in range(count)}
+    try:
+        with zipfile.ZipFile(path) as archive:
+            sizes = {entry.filename.removesuffix(".npy"): entry.file_size for entry in archive.infolist()}
+        too_big = sorted(key for key in wanted & sizes.keys() if sizes[key] > MAX_ARRAY_BYTES)
+        if not too_big:
+            with np.load(path, allow_pickle=False) as archive:
+                return {key: archive[key] for key in archive.files if key in wanted}
+    except Exception as exc:  # numpy and zipfile raise several types for a damaged archive
+        raise InputError(path, f"damaged .npz archive ({type(exc).__name__}: {exc})") from None
+    raise InputError(path, f"{too_big[0]} unpacks to {sizes[too_big[0]]} bytes, far more than a 4x4 matrix")

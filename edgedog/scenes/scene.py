@@ -24,6 +24,8 @@ class View:
         image_path: the colour image (RGB or RGBA).
         edge_paths: detector name (lower case, e.g. "pidinet") -> pseudo-edge map file.
         mask_path: object mask file, if the dataset has one (RGBA images carry their own).
+        alpha: whether the image has an alpha channel (its mask), as its header says; None when
+            not known before the image is read.
     """
 
     name: str
@@ -31,6 +33,11 @@ class View:
     image_path: Path
     edge_paths: Mapping[str, Path] = field(default_factory=dict)
     mask_path: Path | None = None
+    alpha: bool | None = None
+
+    @property
+    def has_mask(self) -> bool:
+        return self.mask_path is not None or bool(self.alpha)
 
 
 @dataclass
@@ -48,6 +55,8 @@ class Scene:
         sfm_colors: (N, 3) uint8 colours of sfm_points, or None.
         downscale: integer factor applied to images and intrinsics on load.
         background: what RGBA images are composited on (None drops the alpha channel).
+        damaged: image file -> why it cannot be read (cut short, undecodable, too large), for
+            the images found so when the scene loaded; reading one raises that InputError.
     """
 
     root: Path
@@ -60,6 +69,7 @@ class Scene:
     sfm_colors: np.ndarray | None = None
     downscale: int = 1
     background: Background = (0.0, 0.0, 0.0)
+    damaged: dict[Path, str] = field(default_factory=dict)
 
     def __len__(self) -> int:
         return len(self.views)
@@ -116,18 +126,35 @@ class Scene:
             )
         return as_gray(self._read(view.edge_paths[detector], index))
 
+    @property
+    def masked_views(self) -> list[int]:
+        """Indices of the views with a mask: a mask file or an image with an alpha channel."""
+        return [i for i, view in enumerate(self.views) if view.has_mask]
+
     def load_coverage(self, index: int) -> np.ndarray | None:
         """(H, W) float32 share of each pixel covered by the object, in [0, 1], from the mask
-        file or the image's alpha; None if neither. Anti-aliased borders keep fractional values."""
+        file or the image's alpha. Anti-aliased borders keep fractional values.
+
+        Returns None when no view of the scene has a mask. Raises InputError naming the image
+        when only this view lacks one: a scene whose images carry alpha in some views only
+        (grey or RGB images among RGBA ones) is decided view by view, and this one has none.
+        """
         view = self.views[index]
         if view.mask_path is not None:
             return as_gray(self._read(view.mask_path, index))
-        image = self._read(view.image_path, index)
+        masked = len(self.masked_views)
+        if view.alpha is False and not masked:
+            return None
+        image = self._read(view.image_path, index)  # a damaged image fails here, naming itself
         if image.ndim == 3 and image.shape[2] == 4:
             return np.ascontiguousarray(image[..., 3])
+        if masked:
+            raise InputError(view.image_path, f"has no alpha channel (no mask), while {masked} of the "
+                                              f"scene's {len(self)} views' images have one")
         return None
 
     def load_mask(self, index: int) -> np.ndarray | None:
-        """(H, W) bool object mask (coverage > 0.5); None if the scene has no masks."""
+        """(H, W) bool object mask (coverage > 0.5); None if the scene has no masks (see
+        `load_coverage`)."""
         coverage = self.load_coverage(index)
         return None if coverage is None else coverage > 0.5

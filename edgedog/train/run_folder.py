@@ -1,45 +1,116 @@
-"""A run folder's config.json: the scene it trains on, the preset named and the full config.
+"""A run folder: what makes a folder one of ours, its config.json, and its one-writer lock.
 
-`edgedog train`, the demo, the ablation bench and the studio all write and read it here, so
-any of them can resume, extract or inspect a run another one made.
+`edgedog train`, the demo, the benchmarks and the studio all write and read config.json here,
+so any of them can resume, extract or inspect a run another one made. A folder is ours when its
+config.json says so (`"format": "edgedog-run"`, or the keys of the files written before the
+format was named); nothing is ever written into a non-empty folder that is not ours. Every
+writer holds the folder's lock while it writes (`RunLock`).
 """
 
 from __future__ import annotations
 
+import errno
+import fcntl
 import hashlib
 import json
+import os
 from dataclasses import dataclass
 from pathlib import Path
 
-from edgedog.errors import InputError
-from edgedog.files import atomic_write_json, read_json
+from edgedog.errors import ConfigError, InputError
+from edgedog.files import atomic_write_json, create_folder, read_json
 from edgedog.train.config import TrainConfig, from_dict, to_dict
 
 RUN_CONFIG = "config.json"
+LOCK_FILE = ".edgedog.lock"
+RUN_FORMAT = "edgedog-run"
+RUN_VERSION = 2
+"""Version 2 adds the format marker and the scene fingerprint; version 1 files (no marker) are
+still read."""
 
 
 @dataclass(frozen=True)
 class RunFolder:
     """path: the run folder; scene: the scene folder; preset: the preset the config started
-    from ('paper' when a file does not say); config: the full resolved config."""
+    from ('paper' when a file does not say); config: the full resolved config;
+    scene_fingerprint: `edgedog.scenes.fingerprint.scene_fingerprint` of the scene trained on
+    (None in runs written before it was recorded)."""
 
     path: Path
     scene: Path
     preset: str
     config: TrainConfig
+    scene_fingerprint: str | None = None
+
+
+def _run_config_data(path: Path) -> dict | None:
+    """config.json of `path` as a dict when it is one of our run files, else None."""
+    file = Path(path) / RUN_CONFIG
+    if not file.is_file():
+        return None
+    try:
+        data = json.loads(file.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    if not isinstance(data, dict):
+        return None
+    if data.get("format") == RUN_FORMAT or {"scene", "config"} <= data.keys():
+        return data
+    return None
+
+
+def is_run_folder(path: Path) -> bool:
+    """Whether `path` holds one of our runs (its config.json is ours)."""
+    return _run_config_data(path) is not None
 
 
 def read_run(path: Path) -> RunFolder:
-    data = read_json(path / RUN_CONFIG)
+    """The run in `path`; a missing or malformed config.json is one InputError naming it."""
+    file = Path(path) / RUN_CONFIG
+    data = read_json(file)
     if not isinstance(data, dict) or not {"scene", "config"} <= data.keys():
-        raise InputError(path / RUN_CONFIG, "expected 'scene' and 'config' keys (written by edgedog train)")
-    return RunFolder(path, Path(data["scene"]), data.get("preset", "paper"), from_dict(data["config"]))
+        raise InputError(file, "expected 'scene' and 'config' keys (written by edgedog train)")
+    version = data.get("version", 1)
+    if not isinstance(version, int) or version > RUN_VERSION:
+        raise InputError(file, f"run format version {version!r} is newer than this edgedog reads "
+                               f"({RUN_VERSION}); update edgedog")
+    scene, preset, fingerprint = data["scene"], data.get("preset", "paper"), data.get("scene_fingerprint")
+    if not (isinstance(scene, str) and isinstance(preset, str) and isinstance(fingerprint, str | None)):
+        raise InputError(file, "'scene', 'preset' and 'scene_fingerprint' must be strings")
+    if not isinstance(data["config"], dict):
+        raise InputError(file, "'config' must be an object of settings")
+    try:
+        config = from_dict(data["config"])
+    except ConfigError as exc:
+        raise InputError(file, f"config: {exc}") from None
+    return RunFolder(Path(path), Path(scene), preset, config, fingerprint)
 
 
 def write_run(run: RunFolder) -> None:
     """Write config.json atomically, creating the run folder if needed."""
-    atomic_write_json(run.path / RUN_CONFIG, {"scene": str(run.scene), "preset": run.preset,
-                                              "config": to_dict(run.config)})
+    atomic_write_json(run.path / RUN_CONFIG, {
+        "format": RUN_FORMAT, "version": RUN_VERSION, "scene": str(run.scene),
+        "scene_fingerprint": run.scene_fingerprint, "preset": run.preset, "config": to_dict(run.config)})
+
+
+def check_new_run_folder(path: Path) -> None:
+    """A new run may go into `path` only when it does not exist or is an empty folder: never
+    into another run (that is `--resume`'s job) nor into a folder of someone else's files."""
+    path = Path(path)
+    if not path.exists():
+        if path.is_symlink():
+            raise InputError(path, "is a broken symbolic link; choose another folder")
+        return
+    if not path.is_dir():
+        raise InputError(path, "is a file, not a folder; choose a new or empty folder")
+    if is_run_folder(path):
+        raise InputError(path, "already holds a run; pass --resume to continue it, or choose another folder")
+    try:
+        entries = [entry.name for entry in os.scandir(path) if entry.name != LOCK_FILE]
+    except OSError as exc:
+        raise InputError(path, f"cannot be read ({exc.strerror})") from None
+    if entries:
+        raise InputError(path, "is not empty and is not an edgedog run folder; choose a new or empty folder")
 
 
 def config_digest(config: TrainConfig) -> str:
@@ -50,8 +121,61 @@ def config_digest(config: TrainConfig) -> str:
 
 def check_same_run(run: RunFolder) -> None:
     """A run folder already there (from an earlier bench or demo) must hold this very run: same scene and
-    configuration; a benchmark never mixes two runs in one folder."""
-    if (run.path / RUN_CONFIG).is_file():
+    configuration; a benchmark never mixes two runs in one folder. A folder that is not a run must be
+    empty."""
+    if is_run_folder(run.path):
         existing = read_run(run.path)
         if existing.config != run.config or existing.scene != run.scene:
             raise InputError(run.path, "holds a run of another scene or configuration; choose another --out")
+        if None not in (existing.scene_fingerprint, run.scene_fingerprint) and \
+                existing.scene_fingerprint != run.scene_fingerprint:
+            raise InputError(run.path, "holds a run of this scene as it was before its cameras or images "
+                                       "changed; choose another --out")
+    else:
+        check_new_run_folder(run.path)
+
+
+class RunLock:
+    """An exclusive lock on a folder we write (a run, a benchmark's output): one writer at a time.
+
+    An advisory `flock` on `<folder>/.edgedog.lock`, which holds the owner's process id for the
+    message a second writer gets. The kernel drops the lock when its process ends, however it
+    ends (kill -9 too), so a killed run never leaves its folder locked.
+    """
+
+    def __init__(self, path: Path, fd: int):
+        self.path, self._fd = path, fd
+
+    @classmethod
+    def acquire(cls, path: str | Path) -> RunLock:
+        """Lock `path` (created if missing); InputError naming it when another writer holds it."""
+        path = Path(path)
+        create_folder(path)
+        try:
+            fd = os.open(path / LOCK_FILE, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o666)
+        except OSError as exc:
+            raise InputError(path, f"cannot be used as an output folder ({exc.strerror})") from None
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError as exc:
+            owner = os.pread(fd, 32, 0).decode(errors="replace").strip() or "unknown"
+            os.close(fd)
+            if exc.errno in (errno.EWOULDBLOCK, errno.EAGAIN):
+                raise InputError(path, f"is in use by another edgedog process (pid {owner}); wait for it "
+                                       "to finish or choose another folder") from None
+            raise InputError(path, f"cannot be locked ({exc.strerror})") from None
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
+        return cls(path, fd)
+
+    def release(self) -> None:
+        """Unlock (closing the file drops the lock); a second call does nothing."""
+        if self._fd is not None:
+            os.close(self._fd)
+            self._fd = None
+
+    def __enter__(self) -> RunLock:
+        return self
+
+    def __exit__(self, *exc_info) -> None:
+        self.release()

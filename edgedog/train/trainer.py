@@ -20,14 +20,15 @@ from tqdm import tqdm
 from edgedog.edges.cache import ensure_edge_maps
 from edgedog.edges.correct import blur_to_profile
 from edgedog.edges.registry import make_detector
-from edgedog.errors import InputError
-from edgedog.files import atomic_write, atomic_write_json
+from edgedog.errors import ConfigError, InputError
+from edgedog.files import atomic_write_json
 from edgedog.init import initialize
 from edgedog.renderer.config import RasterConfig
 from edgedog.renderer.primitives import RasterCamera
 from edgedog.renderer.rasterize import rasterize
 from edgedog.scenes import Scene
 from edgedog.train import losses
+from edgedog.train.checkpoint import CHECKPOINT, model_arrays, read_checkpoint, to_numpy, write_checkpoint
 from edgedog.train.config import TrainConfig, for_detector, from_dict, to_dict
 from edgedog.train.layers import LowerLayers, keep_on_residual, lower_layer_config, residual_maps
 from edgedog.train.model import EdgeModel
@@ -41,7 +42,6 @@ from edgedog.train.targets import (
     scene_outlines,
 )
 
-CHECKPOINT = "checkpoint.pt"
 GEOMETRY_GROUPS = ("means", "log_scales", "quats")  # what the orientation losses move
 
 
@@ -113,11 +113,18 @@ def stack_snapshot(stack: LowerLayers, step: int = 0, epoch: int = 0, loss: floa
 def read_stack(run_dir: Path) -> LowerLayers:
     """The whole model of a run folder from its checkpoint: its lower layers and its own."""
     path = Path(run_dir) / CHECKPOINT
-    if not path.is_file():
-        raise InputError(path, "no checkpoint (is this a run folder written by `edgedog train`?)")
-    saved = torch.load(path, weights_only=False)
-    lower = LowerLayers.from_numpy(saved["lower"]) if "lower" in saved else LowerLayers.empty()
-    return lower.plus(EdgeModel.from_numpy(saved["model"]), from_dict(saved["config"]).layer)
+    saved = read_checkpoint(path)
+    lower = LowerLayers.from_numpy(model_arrays(saved, "lower", path, with_layers=True))
+    top = EdgeModel.from_numpy(model_arrays(saved, "model", path))
+    return lower.plus(top, _saved_config(saved, path).layer)
+
+
+def _saved_config(saved: dict, path: Path) -> TrainConfig:
+    """The config a checkpoint was saved with; a malformed one is an InputError naming the file."""
+    try:
+        return from_dict(saved["config"])
+    except (ConfigError, TypeError, AttributeError) as exc:
+        raise InputError(path, f"malformed checkpoint: config: {exc}") from None
 
 
 class Trainer:
@@ -156,7 +163,7 @@ class Trainer:
         self._epoch_losses: list[float] = []
         self._order = torch.zeros(0, dtype=torch.long)
         self.latest_snapshot: Snapshot | None = None
-        if (self.out / CHECKPOINT).is_file():
+        if (self.out / CHECKPOINT).exists():
             self._load(self.out / CHECKPOINT)
         else:
             self.lower = LowerLayers.empty() if lower is None else lower
@@ -324,17 +331,29 @@ class Trainer:
             "lower_optimizers": None if self.lower_optimizers is None else self.lower_optimizers.state_dict(),
             "learned_shift": None if self.learned_shift is None else self.learned_shift.state_dict(),
         }
-        return atomic_write(self.out / CHECKPOINT, lambda f: torch.save(payload, f))
+        return write_checkpoint(self.out / CHECKPOINT, payload)
 
     def _load(self, path: Path) -> None:
-        saved = torch.load(path, weights_only=False)
-        if from_dict(saved["config"]) != self.config:
+        saved = read_checkpoint(path)
+        if _saved_config(saved, path) != self.config:
             raise InputError(path, "the checkpoint was made with another configuration")
-        self.model = EdgeModel.from_numpy(saved["model"]).requires_grad_()
+        self.model = EdgeModel.from_numpy(model_arrays(saved, "model", path)).requires_grad_()
+        self.lower = LowerLayers.from_numpy(model_arrays(saved, "lower", path, with_layers=True))
+        try:
+            self._restore(saved)
+        except (AttributeError, KeyError, IndexError, TypeError, ValueError, RuntimeError) as exc:
+            # The parts that model_arrays does not check (optimiser moments, random states) are
+            # checked by torch and numpy as they are restored.
+            raise InputError(path, f"malformed checkpoint ({type(exc).__name__}: {exc})") from None
+
+    def _restore(self, saved: dict) -> None:
+        """Everything of a read checkpoint but the models (set by `_load`)."""
         self.optimizers = Optimizers(self.model, self.config)
         self.optimizers.load_state_dict(saved["optimizers"])
-        self.state = StrategyState(saved["absgrad"], saved["pruned_positions"], saved["fisher"])
-        self.lower = LowerLayers.from_numpy(saved["lower"]) if "lower" in saved else LowerLayers.empty()
+        self.state = StrategyState(saved["absgrad"], to_numpy(saved["pruned_positions"]),
+                                   to_numpy(saved["fisher"]))
+        if len(self.state.absgrad) != len(self.model):
+            raise ValueError(f"absgrad has {len(self.state.absgrad)} rows for {len(self.model)} primitives")
         self._bind_lower()
         if self.lower_optimizers is not None:
             self.lower_optimizers.load_state_dict(saved["lower_optimizers"])
@@ -342,12 +361,12 @@ class Trainer:
             self.learned_shift.load_state_dict(saved["learned_shift"])
         self.generator.set_state(saved["generator"])
         torch.set_rng_state(saved["torch_rng"])
-        np.random.set_state(saved["numpy_rng"])
+        np.random.set_state(to_numpy(saved["numpy_rng"]))
         random.setstate(saved["python_rng"])
-        self.step_index = saved["step_index"]
+        self.step_index = int(saved["step_index"])
         self.history, self.events = saved["history"], saved["events"]
-        self.seconds, self.bad_gradients = saved["seconds"], saved["bad_gradients"]
-        self.init_report, self.initial_count = saved["init_report"], saved["initial_count"]
+        self.seconds, self.bad_gradients = float(saved["seconds"]), int(saved["bad_gradients"])
+        self.init_report, self.initial_count = saved["init_report"], int(saved["initial_count"])
 
     def shift_px(self) -> list[float]:
         """The maps' total correction shift (dx, dy) in px at the training resolution: the fixed

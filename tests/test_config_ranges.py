@@ -1,0 +1,274 @@
+"""Every training setting is checked where it is made (presets, --set, a run's config.json), against
+the range or choices its type declares; the --level and detector names as far as the command line
+can tell without the scene."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import typing
+
+import pytest
+
+from edgedog.curves.config import ExtractConfig
+from edgedog.edges.levels import check_level_maps, parse_level, resolve_levels
+from edgedog.edges.registry import is_detector_name, make_detector, require_detector
+from edgedog.errors import ConfigError, InputError
+from edgedog.train.config import (
+    MAX_EPOCHS,
+    MAX_LAYERS,
+    PRESETS,
+    Check,
+    OneOf,
+    Range,
+    TrainConfig,
+    from_dict,
+    preset,
+    to_dict,
+    with_epochs,
+    with_overrides,
+)
+
+KINDS = typing.get_type_hints(TrainConfig, include_extras=True)
+FIELDS = [f.name for f in dataclasses.fields(TrainConfig)]
+
+
+def _parts(kind) -> tuple:
+    """(type without Annotated and None, its rules, whether None is allowed)."""
+    rules = ()
+    if typing.get_origin(kind) is typing.Annotated:
+        kind, rules = kind.__origin__, kind.__metadata__
+    args = typing.get_args(kind)
+    optional = type(None) in args
+    if optional:
+        (kind,) = [arg for arg in args if arg is not type(None)]
+    return kind, rules, optional
+
+
+def _outside(bounds: Range, kind) -> list:
+    """Values just outside `bounds` (an open end itself is outside)."""
+    step = 1 if kind is int else 1e-6
+    values = []
+    if bounds.low is not None:
+        values.append(bounds.low if bounds.open_low else bounds.low - step)
+    if bounds.high is not None:
+        values.append(bounds.high if bounds.open_high else bounds.high + step)
+    return [kind(v) for v in values]
+
+
+def bad_values(kind) -> list:
+    """Values a setting of type `kind` must refuse: wrong types, non-finite numbers, values just
+    outside its range, choices it does not have, tuples of the wrong length or with a bad item."""
+    base, rules, optional = _parts(kind)
+    origin, args = typing.get_origin(base), typing.get_args(base)
+    wrong = [] if optional else [None]
+    if origin is typing.Literal:
+        return wrong + ["bogus", 1, [args[0]]]
+    if origin is tuple:
+        item = args[0]
+        good = _parts(item)[0](0)
+        shapes = [[good] * (len(args) + 1), "0,0", 0] if args[-1] is not Ellipsis else ["1,2", 3]
+        if args[-1] is not Ellipsis:
+            shapes.append([good] * (len(args) - 1))
+        return wrong + shapes + [(bad,) + (good,) * (len(args) - 1 if args[-1] is not Ellipsis else 0)
+                                 for bad in bad_values(item) if bad is not None]
+    if base is bool:
+        return wrong + ["true", 1, 0.0]
+    if base is str:
+        checked = [""] if any(isinstance(r, Check) for r in rules) else []
+        chosen = ["bogus"] if any(isinstance(r, OneOf) for r in rules) else []
+        return wrong + [1, ["auto"]] + checked + chosen
+    numbers = [v for rule in rules if isinstance(rule, Range) for v in _outside(rule, base)]
+    if base is int:
+        return wrong + numbers + [1.5, "1", True, [1]]
+    return wrong + numbers + [math.nan, math.inf, -math.inf, "0.5", [0.5], True]
+
+
+# --- every field
+def test_every_setting_declares_what_it_accepts():
+    """A number has a Range, a string a Literal, OneOf or Check: a new field cannot go unchecked."""
+    for name in FIELDS:
+        base, rules, _ = _parts(KINDS[name])
+        if typing.get_origin(base) is tuple:
+            base, rules, _ = _parts(typing.get_args(base)[0])
+        if base in (int, float):
+            assert any(isinstance(rule, Range) for rule in rules), name
+        elif base is str:
+            assert any(isinstance(rule, (OneOf, Check)) for rule in rules), name
+        else:
+            assert base is bool or typing.get_origin(base) is typing.Literal, name
+
+
+@pytest.mark.parametrize("name", FIELDS)
+def test_every_setting_refuses_bad_values(name):
+    values = bad_values(KINDS[name])
+    assert values
+    for value in values:
+        with pytest.raises(ConfigError, match=name):
+            TrainConfig(**{name: value})
+
+
+@pytest.mark.parametrize("name", FIELDS)
+def test_every_setting_takes_its_closed_bounds(name):
+    base, rules, optional = _parts(KINDS[name])
+    for rule in (r for r in rules if isinstance(r, Range)):
+        for bound, is_open in ((rule.low, rule.open_low), (rule.high, rule.open_high)):
+            if bound is not None and not is_open:
+                assert getattr(TrainConfig(**{name: base(bound)}), name) == bound
+    if optional:
+        assert getattr(TrainConfig(**{name: None}), name) is None
+
+
+def test_values_are_stored_as_their_type():
+    """A JSON 1 for a float setting, a list for a tuple: stored as float and tuple (hashable,
+    equal to the preset's)."""
+    config = TrainConfig(lr_means=1, k_init=[0, 1], duplicate_epochs=[5, 10])
+    assert type(config.lr_means) is float and type(config.k_init[0]) is float and hash(config)
+    assert config.k_init == (0.0, 1.0) and config.duplicate_epochs == (5, 10)
+
+
+# --- the problems of issue 23, as messages
+@pytest.mark.parametrize("assignment, words", [
+    ("checkpoint_every=0", "checkpoint_every must be an integer >= 1, got 0"),
+    ("fisher_every=0", "fisher_every must be an integer >= 1"),
+    ("orientation_every=0", "orientation_every must be"),
+    ("snapshot_every=0", "snapshot_every must be"),
+    ("sampled_loss_every=0", "sampled_loss_every must be"),
+    ("epochs=0", f"epochs must be an integer in [1, {MAX_EPOCHS}], got 0"),
+    ("init_opacity=1.5", "init_opacity must be a number in (0, 1), got 1.5"),
+    ("init_count=-1", "init_count must be an integer in [1, "),
+    ("init_count=0", "init_count must be"),
+    ("init_side=0", "init_side must be a number > 0, or none, got 0.0"),
+    ("seed=-1", "seed must be an integer in [0, "),
+    ("k_init=0.5", "k_init must be 2 values, each a number in [-20, 20], got (0.5,)"),
+    ("max_primitives=0", "max_primitives must be"),
+    ("edge_threshold=nan", "edge_threshold must be a number in (0, 1], got nan"),
+    ("lr_means=inf", "lr_means must be a number in [0, 1], got inf"),
+    ("profile_sigma=1e9", "profile_sigma must be a number in (0, 32]"),
+    ("duplicate_copies=0", "duplicate_copies must be an integer in [1, 8]"),
+    ("direction_neighbours=100000", "direction_neighbours must be an integer in [2, 32]"),
+    ("epochs=two", "epochs must be an integer in [1, 10000], got 'two'"),
+    ("pixel_uncertainty=maybe", "pixel_uncertainty must be true or false, got 'maybe'"),
+    ("kernel=box", "kernel must be one of dog, gaussian, got 'box'"),
+    ("init_method=random", "init_method must be one of auto, triangulate, sfm-points, uniform"),
+    ("duplicate_epochs=10,-1", "duplicate_epochs must be a list, each an integer in [0, 10000]"),
+    ("detector=canny:5", "detector 'canny:5': expected canny:LOW,HIGH"),
+    ("detector=", "detector must name a detector or a scene's maps"),
+    ("epoch=3", "unknown setting 'epoch' (did you mean epochs?)"),
+    ("epochs", "expected KEY=VALUE"),
+])
+def test_a_bad_override_names_the_assignment_and_the_range(assignment, words):
+    with pytest.raises(ConfigError) as error:
+        with_overrides(TrainConfig(), [assignment])
+    assert str(error.value).startswith(f"--set {assignment!r}: ") and words in str(error.value)
+
+
+def test_overrides_read_values_by_type():
+    config = with_overrides(TrainConfig(), ["init_side=none", "duplicate_epochs=", "pixel_uncertainty=off",
+                                            "k_init=1,-2", "direction_factor=0.5", "seed=7"])
+    assert config.init_side is None and config.duplicate_epochs == () and not config.pixel_uncertainty
+    assert config.k_init == (1.0, -2.0) and config.direction_factor == 0.5 and config.seed == 7
+    assert with_overrides(TrainConfig(), ["direction_factor=none"]).direction_factor is None
+
+
+def test_other_settings_classes_get_the_same_parsing():
+    """with_overrides reads `edgedog extract --set` too: NaN is refused there as well."""
+    assert with_overrides(ExtractConfig(), ["min_opacity=0.3"]).min_opacity == 0.3
+    with pytest.raises(ConfigError, match=r"--set 'min_opacity=nan': min_opacity must be a number, got nan"):
+        with_overrides(ExtractConfig(), ["min_opacity=nan"])
+
+
+# --- presets and schedules
+@pytest.mark.parametrize("name", PRESETS)
+def test_presets_pass_and_survive_their_json(name):
+    config = preset(name)
+    assert from_dict(json.loads(json.dumps(to_dict(config)))) == config
+
+
+def test_stretched_schedules_stay_in_range():
+    for name in PRESETS:
+        for epochs in (1, 3, MAX_EPOCHS):
+            assert with_epochs(preset(name), epochs).epochs == epochs
+    with pytest.raises(ConfigError, match="epochs must be an integer in"):
+        with_epochs(preset("paper"), MAX_EPOCHS + 1)
+    with pytest.raises(ConfigError, match="epochs must be"):
+        with_epochs(preset("paper"), 0)
+
+
+# --- config.json
+def test_a_config_json_of_an_older_version_reads_with_defaults():
+    """Settings added since a run was written are absent from its config.json: defaults apply."""
+    old = {"epochs": 30, "kernel": "gaussian", "k_init": [0.5, 0.5]}
+    config = from_dict(old)
+    assert (config.epochs, config.kernel, config.k_init) == (30, "gaussian", (0.5, 0.5))
+    assert config.max_primitives == TrainConfig().max_primitives
+
+
+@pytest.mark.parametrize("values, words", [
+    ({"epochs": "two"}, "epochs must be an integer in [1, 10000], got 'two'"),
+    ({"epochs": [2]}, "epochs must be an integer"),
+    ({"epochs": None}, "epochs must be an integer"),
+    ({"epochs": 2.0}, "epochs must be an integer"),
+    ({"lr_means": "0.001"}, "lr_means must be a number"),
+    ({"lr_means": {"value": 1}}, "lr_means must be a number"),
+    ({"k_init": [0.0]}, "k_init must be 2 values"),
+    ({"k_init": "0,0"}, "k_init must be 2 values"),
+    ({"cull_opacity_epochs": [125, "310"]}, "cull_opacity_epochs must be a list"),
+    ({"pixel_uncertainty": "yes"}, "pixel_uncertainty must be true or false"),
+    ({"weighting": "Exp"}, "weighting must be one of one, exp_neg, one_minus, up, exp"),
+    ({"profile_sigma": 1e9}, "profile_sigma must be a number in (0, 32]"),
+    ({"epochs": 5, "learning_rate": 1, "colour": 2}, "unknown settings colour, learning_rate"),
+    ([1, 2], "expected an object of settings"),
+])
+def test_a_bad_config_json_is_a_config_error(values, words):
+    with pytest.raises(ConfigError) as error:
+        from_dict(values)
+    assert words in str(error.value)
+
+
+# --- levels and detector names
+@pytest.mark.parametrize("name, known", [
+    ("auto", True), ("canny", True), ("sobel", True), ("canny:50,150", True), ("pidinet", True),
+    ("pidinet-nyud:side2", True), ("dexined", False), ("my maps", False),
+])
+def test_detector_names_are_told_from_scene_map_names(name, known):
+    assert is_detector_name(name) is known
+
+
+@pytest.mark.parametrize("name, words", [
+    ("canny:5", "expected canny:LOW,HIGH"), ("canny:9,2", "0 <= LOW <= HIGH"), ("canny:", "LOW,HIGH"),
+    ("pidinet:side9", "pidinet takes :side1"), ("sobel:3", "sobel takes no options"),
+])
+def test_a_detector_name_with_bad_options_is_refused_without_the_scene(name, words):
+    with pytest.raises(ConfigError, match=words):
+        is_detector_name(name)
+    with pytest.raises(ConfigError, match=words):
+        make_detector(name)
+
+
+@pytest.mark.parametrize("names, specs, words", [
+    (["L0", "L1"], ["L1=canny@2"], "--level 'L1=canny@2': map_floor must be a number in [0, 1), got 2.0"),
+    (["L0", "L1"], ["L1=canny@nan"], "map_floor must be"),
+    (["L0", "L1"], ["L1=canny:5"], "--level 'L1=canny:5': detector 'canny:5'"),
+    (["L0", "L1"], ["L1=pidinet:fused2"], "pidinet takes"),
+    (["L0", "L1"], [f"L{MAX_LAYERS}=canny"], f"layer must be an integer in [0, {MAX_LAYERS - 1}]"),
+    (["L0", "L1"], ["L2=canny"], "--level L2: not among --layers L0,L1"),
+    ([f"L{i}" for i in range(MAX_LAYERS + 1)], [], f"at most {MAX_LAYERS} layers"),
+])
+def test_bad_levels_are_found_before_the_scene_is_read(names, specs, words):
+    with pytest.raises(ConfigError) as error:
+        resolve_levels(names, specs)
+    assert words in str(error.value)
+
+
+def test_level_maps_are_checked_against_the_scene_before_training(monkeypatch):
+    monkeypatch.delenv("EDGEDOG_PIDINET", raising=False)
+    levels = resolve_levels(["L0", "L1"], ["L1=dexined"])
+    check_level_maps(levels, ["dexined"])  # the scene's own maps: fine
+    with pytest.raises(ConfigError, match=r"level L1=dexined: unknown detector 'dexined'.*maps \(canny\)"):
+        check_level_maps(levels, ["canny"])
+    with pytest.raises(InputError, match="PiDiNet weights not found"):
+        check_level_maps((parse_level("L0=pidinet-nyud"),), ["canny"])
+    with pytest.raises(InputError, match="PiDiNet weights not found"):
+        require_detector("pidinet")

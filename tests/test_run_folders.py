@@ -1,0 +1,179 @@
+"""Run folders others can trust: opening one runs no code, no folder that is not ours is written,
+--resume checks the scene and the options, one writer at a time, Ctrl-C stops cleanly."""
+
+from __future__ import annotations
+
+import errno
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+import torch
+from bad_inputs import edgedog, snapshot
+
+from edgedog.errors import InputError, OutputError
+from edgedog.files import atomic_write_json
+from edgedog.train.checkpoint import read_checkpoint
+from edgedog.train.run_folder import LOCK_FILE, RunLock, read_run
+
+TRAIN = ["--preset", "preview", "--set", "epochs=2", "--set", "init_count=300", "--quiet"]
+
+
+@pytest.fixture(scope="module")
+def tiny_scenes(tmp_path_factory) -> tuple[Path, Path]:
+    """Two small scenes (a box and a cylinder: 12 views at 96 px, Canny maps)."""
+    root = tmp_path_factory.mktemp("scenes")
+    for shape in ("box", "cylinder"):
+        result = edgedog("make-scene", "--shape", shape, "--out", root / shape, "--views", "12",
+                         "--size", "96", "--detector", "canny")
+        assert result.returncode == 0, result.stderr
+    return root / "box", root / "cylinder"
+
+
+@pytest.fixture(scope="module")
+def finished_run(tiny_scenes, tmp_path_factory) -> Path:
+    run = tmp_path_factory.mktemp("runs") / "box"
+    result = edgedog("train", tiny_scenes[0], "--out", run, *TRAIN)
+    assert result.returncode == 0, result.stderr
+    return run
+
+
+class CodeInPickle:
+    """Unpickling this calls os.system: what a crafted checkpoint.pt would do."""
+
+    def __init__(self, marker: Path):
+        self.marker = marker
+
+    def __reduce__(self):
+        return os.system, (f"touch {self.marker}",)
+
+
+def test_a_crafted_checkpoint_runs_no_code_on_resume(finished_run, tiny_scenes, tmp_path):
+    run = tmp_path / "run"
+    shutil.copytree(finished_run, run)
+    marker = tmp_path / "marker"
+    torch.save({"format": "edgedog-checkpoint", "version": 2, "model": CodeInPickle(marker)},
+               run / "checkpoint.pt")
+    result = edgedog("train", tiny_scenes[0], "--out", run, "--resume", "--quiet")
+    assert result.returncode == 2, result.stderr
+    assert "checkpoint.pt" in result.stderr and "not loaded" in result.stderr
+    with pytest.raises(InputError, match="not loaded"):
+        read_checkpoint(run / "checkpoint.pt")
+    assert not marker.exists()
+
+
+def test_checkpoints_hold_only_plain_data(finished_run):
+    saved = torch.load(finished_run / "checkpoint.pt", weights_only=True)
+    assert saved["format"] == "edgedog-checkpoint" and saved["version"] == 2
+    assert isinstance(saved["model"]["means"], torch.Tensor)
+
+
+def test_a_folder_that_is_not_a_run_is_never_written(tiny_scenes, tmp_path):
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "config.json").write_text('{"mine": 1}')
+    before = snapshot(mine)
+    for scene in ("/nonexistent", tiny_scenes[0]):  # a bad scene, then a good one
+        result = edgedog("train", scene, "--out", mine, *TRAIN)
+        assert result.returncode == 2 and result.stderr.count("\n") == 1, result.stderr
+        assert snapshot(mine) == before and sorted(os.listdir(mine)) == ["config.json"]
+    assert "not an edgedog run folder" in result.stderr
+
+
+def test_resume_refuses_another_scene_and_new_settings(finished_run, tiny_scenes, tmp_path):
+    run = tmp_path / "run"
+    shutil.copytree(finished_run, run)
+    before = snapshot(run)
+    other = edgedog("train", tiny_scenes[1], "--out", run, "--resume", "--quiet")
+    assert other.returncode == 2 and "other cameras or images" in other.stderr, other.stderr
+    for options in (["--set", "epochs=200"], ["--preset", "paper"], ["--set", "keep_ratio=5"]):
+        changed = edgedog("train", tiny_scenes[0], "--out", run, "--resume", "--quiet", *options)
+        assert changed.returncode == 2 and "cannot change them" in changed.stderr, changed.stderr
+    assert snapshot(run) == before
+
+
+def test_resume_accepts_the_same_scene_moved(finished_run, tiny_scenes, tmp_path):
+    """The fingerprint is of the content: a copied scene folder is the same scene."""
+    run, moved = tmp_path / "run", tmp_path / "moved-box"
+    shutil.copytree(finished_run, run)
+    shutil.copytree(tiny_scenes[0], moved)
+    result = edgedog("train", moved, "--out", run, "--resume", "--quiet")
+    assert result.returncode == 0, result.stderr
+    assert json.loads(result.stdout.splitlines()[0])["resumed_at_step"] > 0
+
+
+def test_a_second_writer_is_refused(tiny_scenes, finished_run, tmp_path):
+    run = tmp_path / "run"
+    shutil.copytree(finished_run, run)
+    with RunLock.acquire(run):  # a writer in another process would hold the same flock
+        for argv in (["train", tiny_scenes[0], "--out", run, "--resume", "--quiet"], ["extract", run],
+                     ["export", run, "--format", "obj"]):
+            result = edgedog(*argv)
+            assert result.returncode == 2 and "in use by another edgedog process" in result.stderr, argv
+            assert f"pid {os.getpid()}" in result.stderr
+    assert edgedog("extract", run).returncode == 0  # released
+
+
+def test_two_trainings_into_one_folder_one_is_refused(tiny_scenes, tmp_path):
+    """Two `train` at once into one new folder: one trains, the other gets one line; the folder
+    is one resumable run."""
+    run = tmp_path / "run"
+    argv = [sys.executable, "-m", "edgedog", "train", str(tiny_scenes[0]), "--out", str(run), *TRAIN]
+    first, second = (subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                     for _ in range(2))
+    results = [(p.wait(timeout=300), p.stderr.read()) for p in (first, second)]
+    codes = sorted(code for code, _ in results)
+    assert codes == [0, 2], results
+    refused = next(err for code, err in results if code == 2)
+    assert "in use by another edgedog process" in refused or "already holds a run" in refused, refused
+    assert read_run(run).config.epochs == 2 and (run / "log.json").is_file()
+
+
+def test_the_lock_is_exclusive_and_released(tmp_path):
+    lock = RunLock.acquire(tmp_path / "run")
+    with pytest.raises(InputError, match="in use by another edgedog process"):
+        RunLock.acquire(tmp_path / "run")
+    lock.release()
+    lock.release()  # twice is harmless
+    with RunLock.acquire(tmp_path / "run"):
+        assert (tmp_path / "run" / LOCK_FILE).read_text().strip() == str(os.getpid())
+
+
+def test_ctrl_c_stops_cleanly_and_the_run_resumes(tiny_scenes, tmp_path):
+    run = tmp_path / "run"
+    argv = [sys.executable, "-m", "edgedog", "train", str(tiny_scenes[0]), "--out", str(run), "--preset",
+            "preview", "--set", "epochs=40", "--set", "checkpoint_every=1", "--set", "init_count=300",
+            "--quiet"]
+    process = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 120
+    while not (run / "checkpoint.pt").is_file() and time.monotonic() < deadline:
+        time.sleep(0.1)
+    process.send_signal(signal.SIGINT)
+    _, err = process.communicate(timeout=60)
+    assert process.returncode == 130, err
+    assert "Traceback" not in err and err.strip().count("\n") == 0, err
+    assert err.startswith("edgedog: error: interrupted") and "--resume" in err
+    resumed = edgedog("train", tiny_scenes[0], "--out", run, "--resume", "--quiet")
+    assert resumed.returncode == 0, resumed.stderr
+    assert json.loads(resumed.stdout.splitlines()[0])["resumed_at_step"] > 0
+
+
+def test_a_full_disk_keeps_the_old_file_and_names_the_path(tmp_path, monkeypatch):
+    target = tmp_path / "log.json"
+    atomic_write_json(target, {"kept": True})
+
+    def no_space(fd):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    monkeypatch.setattr(os, "fsync", no_space)
+    with pytest.raises(OutputError, match="No space left on device") as caught:
+        atomic_write_json(target, {"kept": False})
+    assert str(caught.value).startswith(str(target))
+    assert json.loads(target.read_text()) == {"kept": True}
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["log.json"]  # no temporary file left
