@@ -22,6 +22,15 @@ def shared_path(relative: str) -> Path:
     return path
 
 
+@pytest.fixture(scope="session", autouse=True)
+def user_cache(tmp_path_factory) -> Path:
+    """The user cache (computed edge maps, built-in scenes) of this test session, commands run as
+    subprocesses included: tests never write into the home folder."""
+    folder = tmp_path_factory.mktemp("edgedog-cache")
+    os.environ["EDGEDOG_CACHE"] = str(folder)
+    return folder
+
+
 @pytest.fixture(scope="session")
 def abc_nef_scene_dir() -> Path:
     return shared_path("abc_nef/00000006")
