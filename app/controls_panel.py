@@ -31,7 +31,11 @@ def _scene(studio) -> None:
                       "view it) in a folder browser (Ctrl+O)", small=True):
         state.request("open")
     imgui.text_disabled("or drop a scene or run folder on the window")
-    imgui.text_wrapped(f"Run  {session.run_dir or '(not started)'}")
+    if session.run_dir is None:
+        imgui.text("Run  (not started)")
+    else:
+        imgui.text(f"Run  {session.run_dir.name}")
+        imgui.set_item_tooltip(str(session.run_dir))
 
 
 def _start_label(studio) -> str:
