@@ -69,13 +69,30 @@ def main(argv: list[str] | None = None) -> int:
         where = f"{exc.filename}: " if exc.filename else ""
         return _fail(f"{where}{exc.strerror or exc}")
     except KeyboardInterrupt:
-        hint = getattr(args, "resume_hint", None)
-        return _fail("interrupted" + (f"; {hint(args)}" if hint else ""), INTERRUPTED)
-    except Exception:
+        return _interrupted(args)
+    except Exception as exc:
+        if _masks_an_interrupt(exc):  # e.g. torch's zip writer failing as Ctrl-C unwinds it
+            return _interrupted(args)
         traceback.print_exc()
         print("edgedog: internal error: this is a bug in edgedog; please report it with the command "
               "line and the traceback above", file=sys.stderr)
         return 1
+
+
+def _interrupted(args: argparse.Namespace) -> int:
+    hint = getattr(args, "resume_hint", None)
+    return _fail("interrupted" + (f"; {hint(args)}" if hint else ""), INTERRUPTED)
+
+
+def _masks_an_interrupt(exc: BaseException) -> bool:
+    """Whether `exc` was raised while a KeyboardInterrupt was being handled."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        seen.add(id(exc))
+        exc = exc.__context__
+    return False
 
 
 def _fail(message: str, code: int = 2) -> int:

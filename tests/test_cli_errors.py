@@ -37,6 +37,23 @@ def test_ctrl_c_without_a_resume_hint_is_one_line(monkeypatch, capsys):
     assert code == cli.INTERRUPTED == 130 and err == "edgedog: error: interrupted\n"
 
 
+def masked_interrupt() -> RuntimeError:
+    """What torch.save's zip writer raises when Ctrl-C interrupts it: its clean-up fails while
+    the KeyboardInterrupt unwinds, and the interrupt is left only in the context."""
+    try:
+        try:
+            raise KeyboardInterrupt
+        except KeyboardInterrupt:
+            raise RuntimeError("PytorchStreamWriter failed writing central directory") from None
+    except RuntimeError as error:
+        return error
+
+
+def test_ctrl_c_masked_by_a_library_clean_up_is_still_an_interrupt(monkeypatch, capsys):
+    code, err = run_main(monkeypatch, capsys, masked_interrupt())
+    assert code == cli.INTERRUPTED and err == "edgedog: error: interrupted\n"
+
+
 def test_usage_errors_are_one_line(capsys):
     with pytest.raises(SystemExit) as exited:
         cli.main(["train", "--bogus"])
