@@ -10,7 +10,7 @@ SUDO   := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 DEB_PACKAGES := xvfb libegl1 libgl1-mesa-dri
 EXT_SOURCES  := $(wildcard csrc/*.cpp csrc/*.h) setup.py
 
-.PHONY: all setup system-deps build demo test clean
+.PHONY: all setup system-deps build demo test test-fast lint screenshots clean
 
 all: setup
 
@@ -45,6 +45,32 @@ demo: setup
 
 test: setup
 	$(BIN)/python -m pytest -q
+
+# The quick tier: no slow test, no OpenGL, no window (markers declared in pyproject.toml).
+test-fast: setup
+	$(BIN)/python -m pytest -q -m "not slow and not gl and not xvfb"
+
+# ruff over the Python, clang-format (style in .clang-format) over the C++; all pinned in requirements.txt.
+# Then import-linter over the packages as installed: edgedog/ with renderer/ and app/ linked in
+# as edgedog.renderer and edgedog.app (it reads files, not setuptools' package-dir).
+IMPORT_TREE := build/import-tree
+lint: $(VENV)/.deps-installed
+	$(BIN)/python -m ruff check .
+	$(BIN)/clang-format --dry-run --Werror csrc/*.cpp csrc/*.h
+	rm -rf $(IMPORT_TREE) && mkdir -p $(IMPORT_TREE)
+	cp -rs $(CURDIR)/edgedog $(IMPORT_TREE)/edgedog
+	cp -rs $(CURDIR)/renderer $(IMPORT_TREE)/edgedog/renderer
+	cp -rs $(CURDIR)/app $(IMPORT_TREE)/edgedog/app
+	cd $(IMPORT_TREE) && PYTHONPATH=. $(CURDIR)/$(BIN)/lint-imports $(CURDIR)/pyproject.toml
+
+# The studio pictures in docs/, each from a scripted session on a virtual display.
+screenshots: setup
+	for script in docs/screenshots/*.json; do \
+		runs=$$(mktemp -d); \
+		xvfb-run -a -s "-screen 0 1600x1000x24" $(BIN)/edgedog studio --size 1600x1000 --runs $$runs \
+			--script $$script || exit 1; \
+		rm -rf $$runs; \
+	done
 
 clean:
 	rm -rf $(VENV) build *.egg-info renderer/_C*.so

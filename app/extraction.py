@@ -1,7 +1,7 @@
 """Curves from a snapshot, scored against the ground truth and exported, off the UI thread.
 
-The snapshot goes through `edgedog extract`'s own pipeline (filters, grouping, fitting) via a
-scratch run folder, so the studio's curves are the ones the command line would give. The
+The snapshot's primitives go through `edgedog extract`'s own pipeline (filters, grouping,
+fitting) in memory, so the studio's curves are the ones the command line would give. The
 snapshot may be a selection of a layered model's layers (those shown): as `edgedog train
 --layers` does for its selections, the projection filter then uses the maps of the finest
 layer selected.
@@ -9,18 +9,17 @@ layer selected.
 
 from __future__ import annotations
 
-import tempfile
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from edgedog.curve_files import EdgeCurves, write_edges
 from edgedog.curves.config import ExtractConfig
-from edgedog.curves.extract import extract_run
+from edgedog.curves.extract import extract_primitives
 from edgedog.edges.cache import attach_edge_maps
 from edgedog.metrics import evaluate
+from edgedog.primitives import EdgePrimitives
 from edgedog.scenes import Scene
-from edgedog.train.export import write_primitives
 
 
 @dataclass(frozen=True)
@@ -58,9 +57,7 @@ def extract_snapshot(snapshot, elapsed: float, scene: Scene, detector: str, run_
     score them when the scene has ground truth, and write them in each of `formats` (see
     `export_path`). `detector` names the maps of the projection filter."""
     attach_edge_maps(scene, detector)  # a finished run's maps may not be loaded yet
-    with tempfile.TemporaryDirectory(prefix="edgedog-studio-") as scratch:
-        write_primitives(Path(scratch) / "primitives.ply", snapshot)
-        result = extract_run(scratch, config, scene, detector)
+    result = extract_primitives(EdgePrimitives.from_arrays(snapshot.primitives), config, scene, detector)
     fscore = None
     samples = result.curves.transformed(scene.world_to_gt).sample()
     if scene.ground_truth is not None and len(samples):  # curves all shorter than 5 mm give none

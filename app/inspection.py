@@ -37,13 +37,10 @@ class Inspector:
 
 
 def snapshot_primitives(snapshot) -> Primitives:
-    """The rasterizer's raw parameters of a snapshot (which holds activated scales and opacity)."""
-    def tensor(values) -> torch.Tensor:
-        return torch.tensor(np.asarray(values, np.float32))  # a copy: snapshots stay untouched
-
-    opacity = tensor(snapshot.opacity)
-    return Primitives(tensor(snapshot.means), torch.log(tensor(snapshot.scales)), tensor(snapshot.quats),
-                      torch.logit(opacity, eps=1e-6), tensor(snapshot.k_raw), torch.ones(len(opacity), 1))
+    """The rasterizer's raw parameters of a snapshot (which holds activated ones)."""
+    raw = snapshot.primitives.raw()  # copies (torch.tensor) keep the snapshot untouched
+    return Primitives(**{name: torch.tensor(np.asarray(values, np.float32)) for name, values in raw.items()},
+                      colors=torch.ones(len(snapshot.means), 1))
 
 
 def _scalar(name: str, values: np.ndarray, cmap: str, lo: float | None = None, hi: float | None = None,

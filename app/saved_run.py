@@ -20,16 +20,11 @@ from edgedog.curves.report import REPORT
 from edgedog.errors import InputError
 from edgedog.files import read_json
 from edgedog.train.layered import LayeredRun, selections
+from edgedog.train.lifecycle import LOG
 from edgedog.train.run_folder import RunFolder
 from edgedog.train.trainer import read_stack, stack_snapshot
 
-LOG = "log.json"
 CURVES = "curves.json"
-
-
-def is_finished(path: Path) -> bool:
-    """Whether a run folder holds a finished run (its log.json is written at the end)."""
-    return (Path(path) / LOG).is_file()
 
 
 def layer_detectors(run: LayeredRun) -> dict[int, str]:

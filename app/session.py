@@ -19,13 +19,12 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from edgedog.app.saved_run import SavedRun, curves_folder, is_finished, layer_detectors
+from edgedog.app.saved_run import SavedRun, curves_folder, layer_detectors
 from edgedog.app.worker import TrainingWorker
 
 from edgedog.curve_files import EdgeCurves
 from edgedog.curves.report import extract_with_report
 from edgedog.edges.cache import attach_edge_maps
-from edgedog.edges.levels import check_level_maps, resolve_levels
 from edgedog.scenes import Scene, load_scene
 from edgedog.train.config import TrainConfig, preset, with_overrides
 from edgedog.train.layered import (
@@ -33,12 +32,15 @@ from edgedog.train.layered import (
     LayeredRun,
     extract_layered,
     is_layered,
+    layer_trainers,
     read_layered,
     write_layered,
 )
 from edgedog.train.layers import layer_name
+from edgedog.train.levels import check_level_maps, resolve_levels
+from edgedog.train.lifecycle import is_finished
 from edgedog.train.run_folder import LOCK_FILE, RUN_CONFIG, RunFolder, RunLock, read_run, write_run
-from edgedog.train.trainer import Trainer, read_stack
+from edgedog.train.trainer import Trainer
 
 Run = RunFolder | LayeredRun
 """A run folder, or a layered one (a run folder per layer, `edgedog train --layers`)."""
@@ -101,22 +103,6 @@ def run_config(run: Run) -> TrainConfig:
 
 def top_layer(run: LayeredRun) -> Path:
     return run.layer_dir(len(run.levels) - 1)
-
-
-def layer_trainers(run: LayeredRun, scene: Scene) -> Iterator[Trainer]:
-    """The trainers of a layered run's unfinished layers, bottom up, each built on the layers
-    below once they are trained (as `edgedog.train.layered.train_layered` trains them)."""
-    lower = None
-    for index in range(len(run.levels)):
-        folder, config = run.layer_dir(index), run.layer_config(index)
-        if is_finished(folder):  # its checkpoint holds the whole stack up to it
-            lower = read_stack(folder)
-            continue
-        if not (folder / RUN_CONFIG).is_file():
-            write_run(RunFolder(folder, run.scene, run.preset, config))
-        trainer = Trainer(scene, config, folder, progress=False, lower=lower)
-        yield trainer
-        lower = trainer.stack()
 
 
 class Session:
@@ -261,7 +247,7 @@ class Session:
         """The worker that trains `run` and then writes what `edgedog train` writes after training."""
         scene = self.scene_at(run_config(run).downscale)
         if isinstance(run, LayeredRun):
-            return TrainingWorker(lambda: layer_trainers(run, scene), self.runs,
+            return TrainingWorker(lambda: layer_trainers(run, scene, progress=False), self.runs,
                                   finish=lambda _: extract_layered(run, scene),
                                   detectors=layer_detectors(run))
 

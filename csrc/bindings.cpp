@@ -28,8 +28,8 @@ void check_float(const Tensor& t, const char* name, std::vector<int64_t> shape) 
   TORCH_CHECK(t.is_contiguous(), name, " must be contiguous");
   TORCH_CHECK(t.dim() == int64_t(shape.size()), name, " must have ", shape.size(), " dimensions");
   for (size_t k = 0; k < shape.size(); ++k) {
-    TORCH_CHECK(shape[k] < 0 || t.size(k) == shape[k], name, " has size ", t.size(k), " in dimension ",
-                k, ", expected ", shape[k]);
+    TORCH_CHECK(shape[k] < 0 || t.size(k) == shape[k], name, " has size ", t.size(k), " in dimension ", k,
+                ", expected ", shape[k]);
   }
 }
 
@@ -64,31 +64,36 @@ edgedog::ProjectInputs project_inputs(const Tensor& means, const Tensor& scales,
   check_float(scales, "scales", {n, 3});
   check_float(quats, "quats", {n, 4});
   check_float(support_q, "support_q", {n});
-  return {n, means.data_ptr<float>(), scales.data_ptr<float>(), quats.data_ptr<float>(),
-          support_q.data_ptr<float>(), eps2d};
+  return {n,
+          means.data_ptr<float>(),
+          scales.data_ptr<float>(),
+          quats.data_ptr<float>(),
+          support_q.data_ptr<float>(),
+          eps2d};
 }
 
 using Tensors3 = std::tuple<Tensor, Tensor, Tensor>;
 using Tensors5 = std::tuple<Tensor, Tensor, Tensor, Tensor, Tensor>;
 
-Tensors5 project_forward(const Tensor& means, const Tensor& scales, const Tensor& quats, const Tensor& support_q,
-                         const Tensor& K, const Tensor& w2c, int64_t width, int64_t height, double near,
-                         double eps2d) {
+Tensors5 project_forward(const Tensor& means, const Tensor& scales, const Tensor& quats,
+                         const Tensor& support_q, const Tensor& K, const Tensor& w2c, int64_t width,
+                         int64_t height, double near, double eps2d) {
   const auto in = project_inputs(means, scales, quats, support_q, eps2d);
   const auto cam = camera_from(K, w2c, width, height, near);
   auto f = means.options();
   Tensor means2d = torch::empty({in.n, 2}, f), conics = torch::empty({in.n, 3}, f);
   Tensor depths = torch::empty({in.n}, f), extents = torch::empty({in.n, 2}, f);
   Tensor valid = torch::empty({in.n}, f.dtype(torch::kBool));
-  edgedog::project_forward(cam, in, {means2d.data_ptr<float>(), conics.data_ptr<float>(),
-                                     depths.data_ptr<float>(), extents.data_ptr<float>(),
-                                     reinterpret_cast<uint8_t*>(valid.data_ptr<bool>())});
+  edgedog::project_forward(cam, in,
+                           {means2d.data_ptr<float>(), conics.data_ptr<float>(), depths.data_ptr<float>(),
+                            extents.data_ptr<float>(), reinterpret_cast<uint8_t*>(valid.data_ptr<bool>())});
   return {means2d, conics, depths, extents, valid};
 }
 
-Tensors3 project_backward(const Tensor& means, const Tensor& scales, const Tensor& quats, const Tensor& support_q,
-                          const Tensor& K, const Tensor& w2c, int64_t width, int64_t height, double near,
-                          double eps2d, const Tensor& g_means2d, const Tensor& g_conics, const Tensor& g_depths) {
+Tensors3 project_backward(const Tensor& means, const Tensor& scales, const Tensor& quats,
+                          const Tensor& support_q, const Tensor& K, const Tensor& w2c, int64_t width,
+                          int64_t height, double near, double eps2d, const Tensor& g_means2d,
+                          const Tensor& g_conics, const Tensor& g_depths) {
   const auto in = project_inputs(means, scales, quats, support_q, eps2d);
   const auto cam = camera_from(K, w2c, width, height, near);
   check_float(g_means2d, "grad means2d", {in.n, 2});
@@ -96,9 +101,9 @@ Tensors3 project_backward(const Tensor& means, const Tensor& scales, const Tenso
   check_float(g_depths, "grad depths", {in.n});
   Tensor g_means = torch::empty_like(means), g_scales = torch::empty_like(scales);
   Tensor g_quats = torch::empty_like(quats);
-  edgedog::project_backward(cam, in,
-                            {g_means2d.data_ptr<float>(), g_conics.data_ptr<float>(), g_depths.data_ptr<float>()},
-                            {g_means.data_ptr<float>(), g_scales.data_ptr<float>(), g_quats.data_ptr<float>()});
+  edgedog::project_backward(
+      cam, in, {g_means2d.data_ptr<float>(), g_conics.data_ptr<float>(), g_depths.data_ptr<float>()},
+      {g_means.data_ptr<float>(), g_scales.data_ptr<float>(), g_quats.data_ptr<float>()});
   return {g_means, g_scales, g_quats};
 }
 
@@ -110,10 +115,9 @@ std::tuple<Tensor, Tensor> tile_lists(const Tensor& means2d, const Tensor& depth
   check_float(extents, "extents", {n, 2});
   TORCH_CHECK(valid.scalar_type() == torch::kBool && valid.is_contiguous() && valid.numel() == n,
               "valid must be a contiguous bool tensor of n entries");
-  const auto lists = edgedog::build_tile_lists(n, means2d.data_ptr<float>(), depths.data_ptr<float>(),
-                                               extents.data_ptr<float>(),
-                                               reinterpret_cast<const uint8_t*>(valid.data_ptr<bool>()),
-                                               int(width), int(height));
+  const auto lists = edgedog::build_tile_lists(
+      n, means2d.data_ptr<float>(), depths.data_ptr<float>(), extents.data_ptr<float>(),
+      reinterpret_cast<const uint8_t*>(valid.data_ptr<bool>()), int(width), int(height));
   auto i32 = means2d.options().dtype(torch::kInt32);
   Tensor offsets = torch::empty({int64_t(lists.offsets.size())}, i32);
   Tensor ids = torch::empty({int64_t(lists.ids.size())}, i32);
@@ -163,10 +167,11 @@ SplatArgs splat_args(const Tensor& means2d, const Tensor& conics, const Tensor& 
           {tiles_x, tiles_y, offsets.data_ptr<int32_t>(), ids.data_ptr<int32_t>()}};
 }
 
-Tensors5 rasterize_forward(const Tensor& means2d, const Tensor& conics, const Tensor& depths, const Tensor& extents,
-                           const Tensor& opacity, const Tensor& a, const Tensor& t, const Tensor& support,
-                           const Tensor& colors, const Tensor& offsets, const Tensor& ids, int64_t width,
-                           int64_t height, const std::optional<Tensor>& background) {
+Tensors5 rasterize_forward(const Tensor& means2d, const Tensor& conics, const Tensor& depths,
+                           const Tensor& extents, const Tensor& opacity, const Tensor& a, const Tensor& t,
+                           const Tensor& support, const Tensor& colors, const Tensor& offsets,
+                           const Tensor& ids, int64_t width, int64_t height,
+                           const std::optional<Tensor>& background) {
   const auto args = splat_args(means2d, conics, depths, extents, opacity, a, t, support, colors, offsets, ids,
                                width, height, background);
   auto f = means2d.options();
@@ -187,11 +192,11 @@ void check_state(const Tensor& final_T, const Tensor& last, int64_t width, int64
 }
 
 std::tuple<Tensor, Tensor, Tensor, Tensor, Tensor, Tensor, Tensor, Tensor> rasterize_backward(
-    const Tensor& means2d, const Tensor& conics, const Tensor& depths, const Tensor& extents, const Tensor& opacity,
-    const Tensor& a, const Tensor& t, const Tensor& support, const Tensor& colors, const Tensor& offsets,
-    const Tensor& ids, int64_t width, int64_t height, const std::optional<Tensor>& background,
-    const Tensor& final_T, const Tensor& last, const Tensor& g_image, const Tensor& g_alpha,
-    const Tensor& g_depth) {
+    const Tensor& means2d, const Tensor& conics, const Tensor& depths, const Tensor& extents,
+    const Tensor& opacity, const Tensor& a, const Tensor& t, const Tensor& support, const Tensor& colors,
+    const Tensor& offsets, const Tensor& ids, int64_t width, int64_t height,
+    const std::optional<Tensor>& background, const Tensor& final_T, const Tensor& last, const Tensor& g_image,
+    const Tensor& g_alpha, const Tensor& g_depth) {
   const auto args = splat_args(means2d, conics, depths, extents, opacity, a, t, support, colors, offsets, ids,
                                width, height, background);
   check_state(final_T, last, width, height);
@@ -201,20 +206,19 @@ std::tuple<Tensor, Tensor, Tensor, Tensor, Tensor, Tensor, Tensor, Tensor> raste
   Tensor gm = torch::empty_like(means2d), gc = torch::empty_like(conics), gd = torch::empty_like(depths);
   Tensor go = torch::empty_like(opacity), ga = torch::empty_like(a), gt = torch::empty_like(t);
   Tensor gcol = torch::empty_like(colors), absgrad = torch::empty_like(means2d);
-  edgedog::rasterize_backward(args.splats, args.frame, args.tiles, final_T.data_ptr<float>(),
-                              last.data_ptr<int32_t>(),
-                              {g_image.data_ptr<float>(), g_alpha.data_ptr<float>(), g_depth.data_ptr<float>()},
-                              {gm.data_ptr<float>(), gc.data_ptr<float>(), gd.data_ptr<float>(),
-                               go.data_ptr<float>(), ga.data_ptr<float>(), gt.data_ptr<float>(),
-                               gcol.data_ptr<float>(), absgrad.data_ptr<float>()});
+  edgedog::rasterize_backward(
+      args.splats, args.frame, args.tiles, final_T.data_ptr<float>(), last.data_ptr<int32_t>(),
+      {g_image.data_ptr<float>(), g_alpha.data_ptr<float>(), g_depth.data_ptr<float>()},
+      {gm.data_ptr<float>(), gc.data_ptr<float>(), gd.data_ptr<float>(), go.data_ptr<float>(),
+       ga.data_ptr<float>(), gt.data_ptr<float>(), gcol.data_ptr<float>(), absgrad.data_ptr<float>()});
   return {gm, gc, gd, go, ga, gt, gcol, absgrad};
 }
 
-Tensor rasterize_fisher(const Tensor& means2d, const Tensor& conics, const Tensor& depths, const Tensor& extents,
-                        const Tensor& opacity, const Tensor& a, const Tensor& t, const Tensor& support,
-                        const Tensor& colors, const Tensor& offsets, const Tensor& ids, int64_t width,
-                        int64_t height, const std::optional<Tensor>& background, const Tensor& final_T,
-                        const Tensor& last) {
+Tensor rasterize_fisher(const Tensor& means2d, const Tensor& conics, const Tensor& depths,
+                        const Tensor& extents, const Tensor& opacity, const Tensor& a, const Tensor& t,
+                        const Tensor& support, const Tensor& colors, const Tensor& offsets, const Tensor& ids,
+                        int64_t width, int64_t height, const std::optional<Tensor>& background,
+                        const Tensor& final_T, const Tensor& last) {
   const auto args = splat_args(means2d, conics, depths, extents, opacity, a, t, support, colors, offsets, ids,
                                width, height, background);
   check_state(final_T, last, width, height);
@@ -229,10 +233,10 @@ Tensor rasterize_fisher(const Tensor& means2d, const Tensor& conics, const Tenso
 // The schemas: one argument order for every device's kernels and for the Python wrappers.
 // Per-primitive tensors come in the order the projection returns them (means2d, conics, depths,
 // extents, valid), then the activated parameters (opacity, a, t, support) and the colours.
-#define EDGEDOG_SPLATS                                                                              \
+#define EDGEDOG_SPLATS                                                                                 \
   "Tensor means2d, Tensor conics, Tensor depths, Tensor extents, Tensor opacity, Tensor a, Tensor t, " \
   "Tensor support, Tensor colors, Tensor offsets, Tensor ids, int width, int height, Tensor? background"
-#define EDGEDOG_PROJECT                                                                             \
+#define EDGEDOG_PROJECT                                                                            \
   "Tensor means, Tensor scales, Tensor quats, Tensor support_q, Tensor K, Tensor w2c, int width, " \
   "int height, float near, float eps2d"
 
@@ -242,14 +246,16 @@ TORCH_LIBRARY(edgedog, m) {
   m.def("project_backward(" EDGEDOG_PROJECT
         ", Tensor g_means2d, Tensor g_conics, Tensor g_depths) -> (Tensor g_means, Tensor g_scales, "
         "Tensor g_quats)");
-  m.def("tile_lists(Tensor means2d, Tensor depths, Tensor extents, Tensor valid, int width, int height)"
-        " -> (Tensor offsets, Tensor ids)");
+  m.def(
+      "tile_lists(Tensor means2d, Tensor depths, Tensor extents, Tensor valid, int width, int height)"
+      " -> (Tensor offsets, Tensor ids)");
   m.def("rasterize_forward(" EDGEDOG_SPLATS
         ") -> (Tensor image, Tensor alpha, Tensor depth, Tensor final_T, Tensor last)");
-  m.def("rasterize_backward(" EDGEDOG_SPLATS
-        ", Tensor final_T, Tensor last, Tensor g_image, Tensor g_alpha, Tensor g_depth) -> (Tensor g_means2d, "
-        "Tensor g_conics, Tensor g_depths, Tensor g_opacity, Tensor g_a, Tensor g_t, Tensor g_colors, "
-        "Tensor absgrad)");
+  m.def(
+      "rasterize_backward(" EDGEDOG_SPLATS
+      ", Tensor final_T, Tensor last, Tensor g_image, Tensor g_alpha, Tensor g_depth) -> (Tensor g_means2d, "
+      "Tensor g_conics, Tensor g_depths, Tensor g_opacity, Tensor g_a, Tensor g_t, Tensor g_colors, "
+      "Tensor absgrad)");
   m.def("rasterize_fisher(" EDGEDOG_SPLATS ", Tensor final_T, Tensor last) -> Tensor fisher");
 }
 
@@ -288,13 +294,16 @@ PYBIND11_MODULE(TORCH_EXTENSION_NAME, m) {
         return d;
       },
       "Build facts: OpenMP on or off, its thread count, the compiler.");
-  m.def("constants", []() {
-    pybind11::dict d;
-    d["tile_size"] = edgedog::kTileSize;
-    d["alpha_min"] = edgedog::kAlphaMin;
-    d["alpha_max"] = edgedog::kAlphaMax;
-    d["early_stop_t"] = edgedog::kEarlyStopT;
-    d["frustum_slack"] = edgedog::kFrustumSlack;
-    return d;
-  }, "The kernels' constants, to check them against renderer/config.py.");
+  m.def(
+      "constants",
+      []() {
+        pybind11::dict d;
+        d["tile_size"] = edgedog::kTileSize;
+        d["alpha_min"] = edgedog::kAlphaMin;
+        d["alpha_max"] = edgedog::kAlphaMax;
+        d["early_stop_t"] = edgedog::kEarlyStopT;
+        d["frustum_slack"] = edgedog::kFrustumSlack;
+        return d;
+      },
+      "The kernels' constants, to check them against renderer/config.py.");
 }

@@ -7,9 +7,9 @@
 namespace edgedog {
 
 struct BuildInfo {
-  bool openmp;          // compiled with OpenMP
-  int max_threads;      // omp_get_max_threads() at call time (1 without OpenMP)
-  std::string compiler; // compiler name and version
+  bool openmp;           // compiled with OpenMP
+  int max_threads;       // omp_get_max_threads() at call time (1 without OpenMP)
+  std::string compiler;  // compiler name and version
 };
 
 BuildInfo build_info();

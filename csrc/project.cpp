@@ -11,26 +11,32 @@ namespace {
 // Everything the forward pass derives for one primitive, kept for its backward pass.
 struct Projected {
   bool valid;
-  double p[3];        // camera-space position
-  double z;           // depth (1 where culled, to stay finite)
-  double tx, ty;      // directions clamped to the frustum slack, times z
-  double clamp_x, clamp_y;          // x/z and y/z after clamping
-  double slope_x, slope_y;          // d clamp / d (x/z): 1 inside, 0 where clamped
-  double J[6];        // 2x3 EWA Jacobian, row-major
-  double qn[4];       // normalised quaternion
+  double p[3];              // camera-space position
+  double z;                 // depth (1 where culled, to stay finite)
+  double tx, ty;            // directions clamped to the frustum slack, times z
+  double clamp_x, clamp_y;  // x/z and y/z after clamping
+  double slope_x, slope_y;  // d clamp / d (x/z): 1 inside, 0 where clamped
+  double J[6];              // 2x3 EWA Jacobian, row-major
+  double qn[4];             // normalised quaternion
   double inv_qnorm;
-  double Rq[9];       // rotation of the primitive
-  double T[6];        // J R_cam (2x3)
-  double TM[6];       // T R_q S (2x3)
-  double cov[3];      // dilated 2D covariance (a, b, c)
+  double Rq[9];   // rotation of the primitive
+  double T[6];    // J R_cam (2x3)
+  double TM[6];   // T R_q S (2x3)
+  double cov[3];  // dilated 2D covariance (a, b, c)
   double det;
 };
 
 void quat_to_rot(const double* q, double* R) {
   const double w = q[0], x = q[1], y = q[2], z = q[3];
-  R[0] = 1 - 2 * (y * y + z * z); R[1] = 2 * (x * y - w * z);     R[2] = 2 * (x * z + w * y);
-  R[3] = 2 * (x * y + w * z);     R[4] = 1 - 2 * (x * x + z * z); R[5] = 2 * (y * z - w * x);
-  R[6] = 2 * (x * z - w * y);     R[7] = 2 * (y * z + w * x);     R[8] = 1 - 2 * (x * x + y * y);
+  R[0] = 1 - 2 * (y * y + z * z);
+  R[1] = 2 * (x * y - w * z);
+  R[2] = 2 * (x * z + w * y);
+  R[3] = 2 * (x * y + w * z);
+  R[4] = 1 - 2 * (x * x + z * z);
+  R[5] = 2 * (y * z - w * x);
+  R[6] = 2 * (x * z - w * y);
+  R[7] = 2 * (y * z + w * x);
+  R[8] = 1 - 2 * (x * x + y * y);
 }
 
 Projected project_one(const PinholeCamera& cam, const ProjectInputs& in, int64_t i) {
@@ -51,8 +57,12 @@ Projected project_one(const PinholeCamera& cam, const ProjectInputs& in, int64_t
   r.tx = r.z * r.clamp_x;
   r.ty = r.z * r.clamp_y;
   const double z2 = r.z * r.z;
-  r.J[0] = cam.fx / r.z; r.J[1] = 0; r.J[2] = -cam.fx * r.tx / z2;
-  r.J[3] = 0; r.J[4] = cam.fy / r.z; r.J[5] = -cam.fy * r.ty / z2;
+  r.J[0] = cam.fx / r.z;
+  r.J[1] = 0;
+  r.J[2] = -cam.fx * r.tx / z2;
+  r.J[3] = 0;
+  r.J[4] = cam.fy / r.z;
+  r.J[5] = -cam.fy * r.ty / z2;
 
   const float* q = in.quats + 4 * i;
   double norm2 = 0;
@@ -63,15 +73,16 @@ Projected project_one(const PinholeCamera& cam, const ProjectInputs& in, int64_t
 
   for (int row = 0; row < 2; ++row) {
     for (int col = 0; col < 3; ++col) {
-      r.T[3 * row + col] = r.J[3 * row] * cam.R[col] + r.J[3 * row + 1] * cam.R[3 + col] +
-                           r.J[3 * row + 2] * cam.R[6 + col];
+      r.T[3 * row + col] =
+          r.J[3 * row] * cam.R[col] + r.J[3 * row + 1] * cam.R[3 + col] + r.J[3 * row + 2] * cam.R[6 + col];
     }
   }
   const float* s = in.scales + 3 * i;
   for (int row = 0; row < 2; ++row) {
     for (int col = 0; col < 3; ++col) {
-      r.TM[3 * row + col] = (r.T[3 * row] * r.Rq[col] + r.T[3 * row + 1] * r.Rq[3 + col] +
-                             r.T[3 * row + 2] * r.Rq[6 + col]) * s[col];
+      r.TM[3 * row + col] =
+          (r.T[3 * row] * r.Rq[col] + r.T[3 * row + 1] * r.Rq[3 + col] + r.T[3 * row + 2] * r.Rq[6 + col]) *
+          s[col];
     }
   }
   const double* a = r.TM;
@@ -102,8 +113,8 @@ void project_forward(const PinholeCamera& cam, const ProjectInputs& in, const Pr
   }
 }
 
-void project_backward(const PinholeCamera& cam, const ProjectInputs& in,
-                      const ProjectGradOutputs& go, const ProjectGradInputs& gi) {
+void project_backward(const PinholeCamera& cam, const ProjectInputs& in, const ProjectGradOutputs& go,
+                      const ProjectGradInputs& gi) {
 #pragma omp parallel for schedule(static)
   for (int64_t i = 0; i < in.n; ++i) {
     float* g_mean = gi.means + 3 * i;
@@ -149,12 +160,12 @@ void project_backward(const PinholeCamera& cam, const ProjectInputs& in,
     const double* G = g_Rq;
     double g_qn[4];
     g_qn[0] = 2 * (-z * G[1] + y * G[2] + z * G[3] - x * G[5] - y * G[6] + x * G[7]);
-    g_qn[1] = 2 * (y * G[1] + z * G[2] + y * G[3] - 2 * x * G[4] - w * G[5] + z * G[6] + w * G[7] -
-                   2 * x * G[8]);
-    g_qn[2] = 2 * (-2 * y * G[0] + x * G[1] + w * G[2] + x * G[3] + z * G[5] - w * G[6] + z * G[7] -
-                   2 * y * G[8]);
-    g_qn[3] = 2 * (-2 * z * G[0] - w * G[1] + x * G[2] + w * G[3] - 2 * z * G[4] + y * G[5] +
-                   x * G[6] + y * G[7]);
+    g_qn[1] =
+        2 * (y * G[1] + z * G[2] + y * G[3] - 2 * x * G[4] - w * G[5] + z * G[6] + w * G[7] - 2 * x * G[8]);
+    g_qn[2] =
+        2 * (-2 * y * G[0] + x * G[1] + w * G[2] + x * G[3] + z * G[5] - w * G[6] + z * G[7] - 2 * y * G[8]);
+    g_qn[3] =
+        2 * (-2 * z * G[0] - w * G[1] + x * G[2] + w * G[3] - 2 * z * G[4] + y * G[5] + x * G[6] + y * G[7]);
     const double dot = w * g_qn[0] + x * g_qn[1] + y * g_qn[2] + z * g_qn[3];
     for (int k = 0; k < 4; ++k) g_quat[k] = float((g_qn[k] - r.qn[k] * dot) * r.inv_qnorm);
     // T = J R_cam.

@@ -26,11 +26,11 @@ struct ProjectInputs {
 };
 
 struct ProjectOutputs {
-  float* means2d;   // (n, 2) pixels
-  float* conics;    // (n, 3) inverse 2D covariance (a, b, c)
-  float* depths;    // (n,) camera z, 0 when culled
-  float* extents;   // (n, 2) half-widths of the support ellipse in pixels, 0 when culled
-  uint8_t* valid;   // (n,) in front of the near plane
+  float* means2d;  // (n, 2) pixels
+  float* conics;   // (n, 3) inverse 2D covariance (a, b, c)
+  float* depths;   // (n,) camera z, 0 when culled
+  float* extents;  // (n, 2) half-widths of the support ellipse in pixels, 0 when culled
+  uint8_t* valid;  // (n,) in front of the near plane
 };
 
 struct ProjectGradOutputs {  // gradients of the loss w.r.t. the forward outputs
@@ -46,7 +46,7 @@ struct ProjectGradInputs {  // gradients written for the forward inputs
 };
 
 void project_forward(const PinholeCamera& cam, const ProjectInputs& in, const ProjectOutputs& out);
-void project_backward(const PinholeCamera& cam, const ProjectInputs& in,
-                      const ProjectGradOutputs& grad_out, const ProjectGradInputs& grad_in);
+void project_backward(const PinholeCamera& cam, const ProjectInputs& in, const ProjectGradOutputs& grad_out,
+                      const ProjectGradInputs& grad_in);
 
 }  // namespace edgedog

@@ -53,7 +53,7 @@ Footprint footprint(const Splats& s, int32_t i, const Tile& tile) {
 struct PixelHit {
   float dx, dy, u, D, alpha;
   DogTerms terms;  // what the backward pass's derivatives of D reuse
-  bool clamped;  // alpha hit kAlphaMax: no gradient through the footprint
+  bool clamped;    // alpha hit kAlphaMax: no gradient through the footprint
 };
 
 inline bool hit_pixel(const Footprint& fp, int px, int py, PixelHit& h) {
@@ -98,7 +98,8 @@ void write_empty_tile(const Tile& tile, const Frame& f, int C, const RasterOutpu
     if (f.background == nullptr) {
       std::fill(out.image + row * C, out.image + (row + tile.width) * C, 0.f);
     } else {
-      for (int x = 0; x < tile.width; ++x) std::copy(f.background, f.background + C, out.image + (row + x) * C);
+      for (int x = 0; x < tile.width; ++x)
+        std::copy(f.background, f.background + C, out.image + (row + x) * C);
     }
   }
 }
@@ -218,14 +219,25 @@ void walk_tile_backwards(const Splats& s, const Frame& f, const TileView& tiles,
   }
 }
 
-enum GradSlot { kMeanX, kMeanY, kAbsMeanX, kAbsMeanY, kConicA, kConicB, kConicC, kOpacity, kA, kT, kDepth,
-                kColors };
+enum GradSlot {
+  kMeanX,
+  kMeanY,
+  kAbsMeanX,
+  kAbsMeanY,
+  kConicA,
+  kConicB,
+  kConicC,
+  kOpacity,
+  kA,
+  kT,
+  kDepth,
+  kColors
+};
 
 }  // namespace
 
-void rasterize_backward(const Splats& s, const Frame& f, const TileView& tiles,
-                        const float* final_T, const int32_t* last, const RasterGradOutputs& go,
-                        const SplatGrads& grads) {
+void rasterize_backward(const Splats& s, const Frame& f, const TileView& tiles, const float* final_T,
+                        const int32_t* last, const RasterGradOutputs& go, const SplatGrads& grads) {
   const int num_tiles = tiles.tiles_x * tiles.tiles_y;
   const int C = s.channels;
   const int64_t per = kColors + C;
@@ -236,39 +248,39 @@ void rasterize_backward(const Splats& s, const Frame& f, const TileView& tiles,
 #pragma omp for schedule(static, 4)  // fixed tile-to-thread map: reproducible sums
     for (int index = 0; index < num_tiles; ++index) {
       walk_tile_backwards(s, f, tiles, index, final_T, last,
-          [&](int32_t i, const Footprint& fp, const PixelHit& h, int64_t pix, float T,
-              const float* behind_color, float behind_depth, float behind_alpha) {
-            float* gi = g + int64_t(i) * per;
-            const float w = h.alpha * T;
-            const float* c = s.colors + int64_t(i) * C;
-            float g_alpha = 0.f;
-            for (int ch = 0; ch < C; ++ch) {
-              const float g_img = go.image[pix * C + ch];
-              gi[kColors + ch] += w * g_img;
-              g_alpha += (c[ch] - behind_color[ch]) * T * g_img;
-            }
-            gi[kDepth] += w * go.depth[pix];
-            g_alpha += (s.depths[i] - behind_depth) * T * go.depth[pix];
-            g_alpha += (1.f - behind_alpha) * T * go.alpha[pix];
-            if (h.clamped) return;
-            float dD_du, dD_dt;
-            dog_derivatives(h.u, fp.t, h.terms, dD_du, dD_dt);
-            gi[kOpacity] += g_alpha * h.D;
-            const float g_D = g_alpha * fp.opacity;
-            gi[kT] += g_D * dD_dt;
-            const float g_u = g_D * dD_du;
-            gi[kA] += g_u * (-h.u * 2.f * fp.inv_2a);  // du/da = -u / a
-            const float g_q = g_u * fp.inv_2a;
-            gi[kConicA] += g_q * h.dx * h.dx;
-            gi[kConicB] += g_q * 2.f * h.dx * h.dy;
-            gi[kConicC] += g_q * h.dy * h.dy;
-            const float g_mx = -2.f * g_q * (fp.A * h.dx + fp.B * h.dy);
-            const float g_my = -2.f * g_q * (fp.B * h.dx + fp.C * h.dy);
-            gi[kMeanX] += g_mx;
-            gi[kMeanY] += g_my;
-            gi[kAbsMeanX] += std::fabs(g_mx);
-            gi[kAbsMeanY] += std::fabs(g_my);
-          });
+                          [&](int32_t i, const Footprint& fp, const PixelHit& h, int64_t pix, float T,
+                              const float* behind_color, float behind_depth, float behind_alpha) {
+                            float* gi = g + int64_t(i) * per;
+                            const float w = h.alpha * T;
+                            const float* c = s.colors + int64_t(i) * C;
+                            float g_alpha = 0.f;
+                            for (int ch = 0; ch < C; ++ch) {
+                              const float g_img = go.image[pix * C + ch];
+                              gi[kColors + ch] += w * g_img;
+                              g_alpha += (c[ch] - behind_color[ch]) * T * g_img;
+                            }
+                            gi[kDepth] += w * go.depth[pix];
+                            g_alpha += (s.depths[i] - behind_depth) * T * go.depth[pix];
+                            g_alpha += (1.f - behind_alpha) * T * go.alpha[pix];
+                            if (h.clamped) return;
+                            float dD_du, dD_dt;
+                            dog_derivatives(h.u, fp.t, h.terms, dD_du, dD_dt);
+                            gi[kOpacity] += g_alpha * h.D;
+                            const float g_D = g_alpha * fp.opacity;
+                            gi[kT] += g_D * dD_dt;
+                            const float g_u = g_D * dD_du;
+                            gi[kA] += g_u * (-h.u * 2.f * fp.inv_2a);  // du/da = -u / a
+                            const float g_q = g_u * fp.inv_2a;
+                            gi[kConicA] += g_q * h.dx * h.dx;
+                            gi[kConicB] += g_q * 2.f * h.dx * h.dy;
+                            gi[kConicC] += g_q * h.dy * h.dy;
+                            const float g_mx = -2.f * g_q * (fp.A * h.dx + fp.B * h.dy);
+                            const float g_my = -2.f * g_q * (fp.B * h.dx + fp.C * h.dy);
+                            gi[kMeanX] += g_mx;
+                            gi[kMeanY] += g_my;
+                            gi[kAbsMeanX] += std::fabs(g_mx);
+                            gi[kAbsMeanY] += std::fabs(g_my);
+                          });
     }
   }
   const float* acc = buffers.reduce();
@@ -301,17 +313,17 @@ void rasterize_fisher(const Splats& s, const Frame& f, const TileView& tiles, co
 #pragma omp for schedule(static, 4)  // fixed tile-to-thread map: reproducible sums
     for (int index = 0; index < num_tiles; ++index) {
       walk_tile_backwards(s, f, tiles, index, final_T, last,
-          [&](int32_t i, const Footprint& fp, const PixelHit& h, int64_t, float T,
-              const float* behind_color, float, float) {
-            if (h.clamped) return;  // alpha saturated: the image does not move with D here
-            const float* c = s.colors + int64_t(i) * C;
-            float sum = 0.f;
-            for (int ch = 0; ch < C; ++ch) {
-              const float dI_dD = (c[ch] - behind_color[ch]) * T * fp.opacity;
-              sum += dI_dD * dI_dD;
-            }
-            g[i] += sum;
-          });
+                          [&](int32_t i, const Footprint& fp, const PixelHit& h, int64_t, float T,
+                              const float* behind_color, float, float) {
+                            if (h.clamped) return;  // alpha saturated: the image does not move with D here
+                            const float* c = s.colors + int64_t(i) * C;
+                            float sum = 0.f;
+                            for (int ch = 0; ch < C; ++ch) {
+                              const float dI_dD = (c[ch] - behind_color[ch]) * T * fp.opacity;
+                              sum += dI_dD * dI_dD;
+                            }
+                            g[i] += sum;
+                          });
     }
   }
   const float* acc = buffers.reduce();

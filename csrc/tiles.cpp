@@ -26,8 +26,8 @@ TileRect tile_rect(const float* m, const float* e, int width, int height) {
 
 }  // namespace
 
-TileLists build_tile_lists(int64_t n, const float* means2d, const float* depths,
-                           const float* extents, const uint8_t* valid, int width, int height) {
+TileLists build_tile_lists(int64_t n, const float* means2d, const float* depths, const float* extents,
+                           const uint8_t* valid, int width, int height) {
   TileLists lists;
   lists.tiles_x = (width + kTileSize - 1) / kTileSize;
   lists.tiles_y = (height + kTileSize - 1) / kTileSize;
@@ -50,7 +50,8 @@ TileLists build_tile_lists(int64_t n, const float* means2d, const float* depths,
   std::vector<int32_t> cursor(lists.offsets.begin(), lists.offsets.end() - 1);
   for (int64_t i = 0; i < n; ++i) {
     for (int ty = rects[i].y0; ty <= rects[i].y1; ++ty) {
-      for (int tx = rects[i].x0; tx <= rects[i].x1; ++tx) lists.ids[cursor[ty * lists.tiles_x + tx]++] = int32_t(i);
+      for (int tx = rects[i].x0; tx <= rects[i].x1; ++tx)
+        lists.ids[cursor[ty * lists.tiles_x + tx]++] = int32_t(i);
     }
   }
   // Each tile's run, front to back; the index breaks depth ties. Runs are short and independent.

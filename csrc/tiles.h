@@ -23,7 +23,7 @@ struct TileLists {
 
 // A primitive covers the pixel centres x in [m - e, m + e] (and likewise in y); culled ones
 // have valid = 0 or a zero extent. Depth ties keep index order.
-TileLists build_tile_lists(int64_t n, const float* means2d, const float* depths,
-                           const float* extents, const uint8_t* valid, int width, int height);
+TileLists build_tile_lists(int64_t n, const float* means2d, const float* depths, const float* extents,
+                           const uint8_t* valid, int width, int height);
 
 }  // namespace edgedog

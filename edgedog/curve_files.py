@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 from plyfile import PlyData, PlyElement
 
-from edgedog.curves.bezier import bezier_points
+from edgedog.bezier import bezier_points
 from edgedog.errors import InputError
 from edgedog.files import atomic_write, atomic_write_bytes, atomic_write_json, read_json
 from edgedog.metrics import (

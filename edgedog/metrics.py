@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from edgedog.curves.bezier import bezier_derivatives, bezier_points
+from edgedog.bezier import bezier_derivatives, bezier_points
 
 SAMPLE_SPACING = 0.005
 THRESHOLDS = (0.005, 0.01, 0.02)

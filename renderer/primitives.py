@@ -5,13 +5,16 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 import torch
-from edgedog.renderer import _torch_ref as ref
 from edgedog.renderer.config import RasterConfig
+from edgedog.renderer.footprint import support_u
+
+from edgedog.primitives import SCHEMA
 
 
 @dataclass
 class Primitives:
-    """N primitives' raw (unactivated) parameters, the tensors an optimizer trains.
+    """N primitives' raw (unactivated) parameters, the tensors an optimizer trains (the `raw`
+    names of edgedog.primitives.SCHEMA, which says how each is activated), and colours.
 
     Attributes:
         means: (N, 3) world positions.
@@ -31,8 +34,7 @@ class Primitives:
 
     def __post_init__(self):
         n = self.means.shape[0]
-        expected = {"means": (n, 3), "log_scales": (n, 3), "quats": (n, 4), "opacity_logits": (n,),
-                    "k_raw": (n, 2)}
+        expected = {p.raw: (n, len(p.columns)) if len(p.columns) > 1 else (n,) for p in SCHEMA}
         for name, shape in expected.items():
             if tuple(getattr(self, name).shape) != shape:
                 raise ValueError(f"{name} has shape {tuple(getattr(self, name).shape)}, expected {shape}")
@@ -108,5 +110,5 @@ def activate(primitives: Primitives, config: RasterConfig) -> Activated:
     opacity = torch.sigmoid(primitives.opacity_logits)
     a, t = dog_shape(primitives.k_raw, config)
     with torch.no_grad():
-        support = ref.support_u(opacity, t)
+        support = support_u(opacity, t)
     return Activated(torch.exp(primitives.log_scales), opacity, a, t, support)

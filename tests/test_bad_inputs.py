@@ -1,5 +1,5 @@
 """Bad run folders, checkpoints and output paths: each fails with one line naming the file, exit 2,
-no traceback, nothing that was there changed (the harness: tests/bad_inputs.py; the scene and
+no traceback, nothing that was there changed (the harness: tests/helpers/bad_inputs.py; the scene and
 settings tables: test_bad_inputs_scenes.py, test_bad_inputs_settings.py)."""
 
 from __future__ import annotations
@@ -12,7 +12,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
-from bad_inputs import Case, assert_fails_cleanly, cases_as_params, edgedog
+
+from tests.helpers.bad_inputs import Case, assert_fails_cleanly, cases_as_params, edgedog
 
 TRAIN = ["--preset", "preview", "--set", "epochs=2", "--set", "init_count=300", "--quiet"]
 SCENE: Path

@@ -1,9 +1,9 @@
 """Bad scene data and data files: each fails with one line naming the file or the option, exit 2,
-no traceback, nothing that was there changed (the harness: tests/bad_inputs.py). Then direct
+no traceback, nothing that was there changed (the harness: tests/helpers/bad_inputs.py). Then direct
 tests of the results that used to be silently wrong (stale edge maps, a truncated image decoded
 in part, a mixed grey/RGBA scene said to have no masks).
 
-The scenes are hand-made 16x16 ones (tests/scene_builders.py): each case costs one subprocess.
+The scenes are hand-made 16x16 ones (tests/helpers/scene_builders.py): each case costs one subprocess.
 """
 
 from __future__ import annotations
@@ -17,9 +17,16 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
-from bad_inputs import Case, assert_fails_cleanly, cases_as_params, edgedog
 from plyfile import PlyData, PlyElement
-from scene_builders import (
+
+from edgedog.commands.info import summary
+from edgedog.edges.cache import ensure_edge_maps
+from edgedog.edges.classical import SobelDetector
+from edgedog.errors import InputError
+from edgedog.scenes import ALLOW_OUTSIDE, load_scene
+from edgedog.scenes.images import image_info, read_raw
+from tests.helpers.bad_inputs import Case, assert_fails_cleanly, cases_as_params, edgedog
+from tests.helpers.scene_builders import (
     SIZE,
     make_colmap,
     make_emap,
@@ -29,13 +36,6 @@ from scene_builders import (
     write_json,
     write_png,
 )
-
-from edgedog.commands.info import summary
-from edgedog.edges.cache import ensure_edge_maps
-from edgedog.edges.classical import SobelDetector
-from edgedog.errors import InputError
-from edgedog.scenes import ALLOW_OUTSIDE, load_scene
-from edgedog.scenes.images import image_info, read_raw
 
 # --- building the cases ------------------------------------------------------------------------
 

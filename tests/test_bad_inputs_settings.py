@@ -1,7 +1,7 @@
 """Bad settings and options, as a user types them: one-line errors naming the setting, given before
 anything is written (issue 23: settings checked at parse time).
 
-Every case runs `python -m edgedog ...` in a fresh folder (tests/bad_inputs.py); SCENE in a case's
+Every case runs `python -m edgedog ...` in a fresh folder (tests/helpers/bad_inputs.py); SCENE in a case's
 command line stands for a tiny box scene made once for the module.
 """
 
@@ -11,9 +11,9 @@ import json
 from pathlib import Path
 
 import pytest
-from bad_inputs import Case, assert_fails_cleanly, cases_as_params, edgedog
 
 from edgedog.train.config import MAX_LAYERS
+from tests.helpers.bad_inputs import Case, assert_fails_cleanly, cases_as_params, edgedog
 
 SCENE = "SCENE"
 """Stands for the module's tiny scene in a case's command line."""

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import dataclasses
 
+import pytest
+
 from edgedog.bench.ablation import (
     COMPONENTS,
     WEIGHTING,
@@ -41,6 +43,7 @@ def test_rows_that_train_identically_share_a_run():
     assert baseline.k_init == base.k_init  # k is unused by the Gaussian kernel
 
 
+@pytest.mark.slow
 def test_weighting_table_trains_scores_and_reuses_its_runs(builtin_scene_dir, tmp_path):
     base = dataclasses.replace(preset("preview"), downscale=4, epochs=4, init_count=300,
                                duplicate_epochs=(1,), opacity_from_epoch=0, scales_from_epoch=0,
@@ -94,3 +97,28 @@ def test_rows_are_chosen_by_key_and_an_unknown_key_is_named():
     assert chosen[1].changes["edge_profile"] == "profile"
     with pytest.raises(ConfigError, match="no row full in the tables corrections"):
         select_rows((CORRECTIONS,), ("full",))
+
+
+def test_a_killed_bench_writes_no_tables_and_resumes_from_its_rows(builtin_scene_dir, tmp_path, monkeypatch):
+    from edgedog.bench import ablation
+
+    base = dataclasses.replace(preset("preview"), downscale=4, epochs=2, init_count=300, duplicate_epochs=(),
+                               cull_projection_epochs=(), cull_opacity_epochs=(), init_side=0.8)
+    rows, trained = ("one", "exp"), []
+
+    def killed_at_the_second_row(run, progress):
+        if trained:
+            raise KeyboardInterrupt
+        trained.append(run.path)
+        return train_and_extract(run, progress)
+
+    train_and_extract = ablation.train_and_extract
+    monkeypatch.setattr(ablation, "train_and_extract", killed_at_the_second_row)
+    with pytest.raises(KeyboardInterrupt):
+        run_ablation(builtin_scene_dir, tmp_path, "preview", base, (WEIGHTING,), False, rows)
+    assert len(trained) == 1 and not (tmp_path / "ablation.json").exists()
+    stamp = (trained[0] / "log.json").stat().st_mtime_ns
+    monkeypatch.undo()
+    results = run_ablation(builtin_scene_dir, tmp_path, "preview", base, (WEIGHTING,), False, rows)
+    assert read_json(tmp_path / "ablation.json") == results and len(results) == 2
+    assert (trained[0] / "log.json").stat().st_mtime_ns == stamp  # the finished row is reused

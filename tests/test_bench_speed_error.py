@@ -53,6 +53,7 @@ def test_budgets_and_evaluation_epochs():
     assert evaluation_epochs(3, 5) == [1, 2, 3]
 
 
+@pytest.mark.slow
 def test_rows_scores_and_summary_files(bench):
     out, results = bench
     with open(out / "speed_error.csv", newline="") as file:
@@ -82,6 +83,7 @@ def test_rows_scores_and_summary_files(bench):
     assert read_json(out / "preview-d4" / "log.json")["final_primitives"] == results[0].points[-1].primitives
 
 
+@pytest.mark.slow
 def test_a_second_invocation_reuses_every_budget(bench, builtin_scene_dir, monkeypatch, capsys):
     out, results = bench
     stamps = {p: p.stat().st_mtime_ns for p in out.glob("*/checkpoint.pt")}
@@ -102,6 +104,7 @@ class Killed(Exception):
     pass
 
 
+@pytest.mark.slow
 def test_a_killed_bench_resumes_to_the_rows_of_an_uninterrupted_one(bench, builtin_scene_dir, monkeypatch,
                                                                     tmp_path):
     evaluate = speed_error.evaluate
@@ -128,12 +131,14 @@ def test_a_killed_bench_resumes_to_the_rows_of_an_uninterrupted_one(bench, built
     assert without_seconds(resumed[0].points) == without_seconds(bench[1][1].points)
 
 
+@pytest.mark.slow
 def test_evaluating_along_the_way_leaves_training_unchanged(bench, builtin_scene_dir, tmp_path):
     budgets = parse_budgets("preview-50")
     once = run_speed_error(builtin_scene_dir, tmp_path, budgets, TINY, evals=1, progress=False)
     assert without_seconds(once[0].points) == without_seconds(bench[1][1].points[-1:])
 
 
+@pytest.mark.slow
 def test_bad_input_is_one_line(builtin_scene_dir, bench, tmp_path, capsys):
     def error(*extra) -> str:
         assert main(["bench", "speed-error", *map(str, extra), "--quiet"]) == 2

@@ -32,6 +32,7 @@ def geometric_edges(render, camera) -> np.ndarray:
     return edges
 
 
+@pytest.mark.gl
 @pytest.mark.parametrize("name", SHAPES)
 def test_visible_ground_truth_lands_on_the_renders_geometric_edges(name):
     part = make_part(name, 1)
@@ -56,6 +57,7 @@ def test_visible_ground_truth_lands_on_the_renders_geometric_edges(name):
             assert (alpha == 255).sum() >= 0.95 * (render.depth > 0).sum()
 
 
+@pytest.mark.gl
 def test_hidden_points_are_not_visible():
     part = make_part("boss", 0)
     c2w = np.eye(4)
@@ -89,6 +91,7 @@ def test_the_exact_box_scene_loads_as_an_abc_nef_scene(builtin_scene_dir):
         assert 0.4 < (values > 0.5).mean() < 0.95
 
 
+@pytest.mark.gl
 def test_render_view_sees_the_faces_that_face_the_camera():
     camera = orbit_cameras(50, 200)[0]  # the first view sits near the +Z pole, looking down
     rgba, edges = builtin_scene.render_view(camera)
@@ -100,6 +103,7 @@ def test_render_view_sees_the_faces_that_face_the_camera():
     assert len(builtin_scene.EDGES) == 12
 
 
+@pytest.mark.gl
 def test_the_default_scene_is_generated_once_in_the_cache(tmp_path, monkeypatch):
     # Canny maps even where PiDiNet weights are configured (these would not even load).
     monkeypatch.setenv("EDGEDOG_PIDINET", str(tmp_path / "no-weights-here"))

@@ -10,7 +10,6 @@ import cv2
 import numpy as np
 import pytest
 import torch
-from conftest import REPO
 
 from edgedog.cli import main
 from edgedog.edges.calibrate import (
@@ -29,6 +28,7 @@ from edgedog.edges.correct import blur_to_profile, gaussian_kernel, shift_edge_m
 from edgedog.edges.detector import EdgeDetector
 from edgedog.edges.thin import thin_edge_map
 from edgedog.scenes import load_scene
+from tests.helpers.paths import REPO
 
 SIZE = 160
 CENTRE, RADIUS = np.array([80.3, 79.6]), 50.0
@@ -192,6 +192,7 @@ class ShiftedCanny(EdgeDetector):
         return shift_edge_map(self.canny.detect(image), *self.shift)
 
 
+@pytest.mark.gl
 def test_calibration_recovers_the_known_shift_of_a_detector(egl):
     settings = dict(shapes=("box", "l-bracket"), views=4, sizes=(300,))
     plain = calibrate_detector(CannyDetector(), **settings)
@@ -202,6 +203,7 @@ def test_calibration_recovers_the_known_shift_of_a_detector(egl):
     assert 0.5 < shifted.profile_width_px < 2.0  # Canny softened by a 1-px Gaussian
 
 
+@pytest.mark.gl
 def test_cli_calibrates_saves_the_record_and_prints_a_summary(egl, cache, tmp_path, capsys):
     out = tmp_path / "canny.json"
     assert main(["calibrate-detector", "--detector", "canny", "--shapes", "box", "--views", "3",
@@ -240,6 +242,7 @@ def test_cli_errors_are_one_line(tmp_path, capsys):
 
 
 @pytest.mark.shared_data
+@pytest.mark.slow
 def test_the_bias_of_the_abc_nef_pidinet_maps_is_reproduced(abc_nef_scene_dir):
     measured = measure_scene_maps(load_scene(abc_nef_scene_dir), "pidinet")
     # The published fact: the maps peak at dx, dy = -0.55, -1.0 px from the projected curves.

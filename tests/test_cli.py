@@ -6,9 +6,9 @@ import json
 
 import numpy as np
 import pytest
-from cli_runner import edgedog
 
 from edgedog.builtin_scene import CORNERS, EDGES
+from tests.helpers.cli_runner import edgedog
 
 
 def test_info_describes_the_scene(builtin_scene_dir):
@@ -86,6 +86,7 @@ def test_help(args):
     assert result.returncode == 0 and "usage: edgedog" in result.stdout
 
 
+@pytest.mark.slow
 def test_demo_trains_extracts_and_scores_the_builtin_part(tmp_path):
     from edgedog.train.config import preset
     from edgedog.train.run_folder import config_digest
@@ -153,6 +154,7 @@ def test_init_reports_the_method_and_writes_points(builtin_scene_dir, tmp_path):
     assert len(vertex) == 1234 and (vertex["scale"] > 0).all()
 
 
+@pytest.mark.slow
 def test_train_writes_a_run_and_refuses_to_overwrite_it(builtin_scene_dir, tmp_path):
     run = tmp_path / "run"
     settings = ["--set", "epochs=2", "--set", "downscale=4", "--set", "init_count=200", "--quiet"]

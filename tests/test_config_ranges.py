@@ -12,7 +12,6 @@ import typing
 import pytest
 
 from edgedog.curves.config import ExtractConfig
-from edgedog.edges.levels import check_level_maps, parse_level, resolve_levels
 from edgedog.edges.registry import is_detector_name, make_detector, require_detector
 from edgedog.errors import ConfigError, InputError
 from edgedog.train.config import (
@@ -29,6 +28,7 @@ from edgedog.train.config import (
     with_epochs,
     with_overrides,
 )
+from edgedog.train.levels import check_level_maps, parse_level, resolve_levels
 
 KINDS = typing.get_type_hints(TrainConfig, include_extras=True)
 FIELDS = [f.name for f in dataclasses.fields(TrainConfig)]

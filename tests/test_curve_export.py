@@ -7,14 +7,14 @@ import json
 import cv2
 import numpy as np
 import pytest
-from cli_runner import edgedog
 from plyfile import PlyData
 from scipy.spatial import cKDTree
 
+from edgedog.bezier import bezier_points
 from edgedog.curve_files import EdgeCurves, curve_polylines, read_edges, write_edges, write_json
-from edgedog.curves.bezier import bezier_points
 from edgedog.errors import InputError
 from edgedog.metrics import evaluate
+from tests.helpers.cli_runner import edgedog
 
 LINES = np.array([[[0.1, 0.2, 0.3], [0.5, 0.2, 0.3]], [[0.5, 0.2, 0.3], [0.5, 0.6, 0.1]]])
 BEZIERS = np.array([[[0.0, 0.0, 0.0], [0.1, 0.3, 0.0], [0.3, 0.3, 0.1], [0.4, 0.0, 0.1]],

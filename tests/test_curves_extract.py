@@ -10,18 +10,18 @@ import sys
 import numpy as np
 import pytest
 from plyfile import PlyData, PlyElement
-from scene_builders import look_at_gl
 from scipy.spatial import cKDTree
 
 from edgedog.curve_files import EdgeCurves, read_edges
 from edgedog.curves import filtering
 from edgedog.curves.config import ExtractConfig
 from edgedog.curves.extract import extract_curves, extract_run
-from edgedog.curves.primitives import read_primitives
 from edgedog.errors import ConfigError, InputError
+from edgedog.primitives import EdgePrimitives, read_ply
 from edgedog.scenes.camera import Camera, intrinsics, w2c_from_opengl_c2w
 from edgedog.train.config import TrainConfig
 from edgedog.train.run_folder import RunFolder, write_run
+from tests.helpers.scene_builders import look_at_gl
 
 NOISE = 0.002  # 2 mm per axis: about the noise of a well-trained run
 DIRECTION_NOISE = 10.0  # degrees
@@ -300,23 +300,23 @@ def test_primitive_direction_is_the_axis_of_the_largest_scale(tmp_path):
     rng = np.random.default_rng(0)
     directions = rng.normal(size=(50, 3))
     write_primitives(tmp_path / "primitives.ply", rng.uniform(size=(50, 3)), directions, 0.5)
-    primitives = read_primitives(tmp_path / "primitives.ply")
+    primitives = EdgePrimitives.from_arrays(read_ply(tmp_path / "primitives.ply"))
     unit = directions / np.linalg.norm(directions, axis=1, keepdims=True)
     np.testing.assert_allclose(np.abs(np.sum(primitives.directions * unit, axis=1)), 1.0, atol=1e-5)
     np.testing.assert_allclose(primitives.elongation, 3.0, rtol=1e-5)
     assert primitives.uncertainty is None
 
 
-def test_read_primitives_errors_name_the_file(tmp_path):
+def test_read_ply_errors_name_the_file(tmp_path):
     with pytest.raises(InputError, match="no such file"):
-        read_primitives(tmp_path / "primitives.ply")
+        read_ply(tmp_path / "primitives.ply")
     (tmp_path / "primitives.ply").write_text("not a ply")
     with pytest.raises(InputError, match="primitives.ply: not a readable PLY"):
-        read_primitives(tmp_path / "primitives.ply")
+        read_ply(tmp_path / "primitives.ply")
     rows = np.zeros(3, dtype=[("x", "f4"), ("y", "f4"), ("z", "f4")])
     PlyData([PlyElement.describe(rows, "vertex")]).write(str(tmp_path / "primitives.ply"))
     with pytest.raises(InputError, match="no vertex properties scale_0"):
-        read_primitives(tmp_path / "primitives.ply")
+        read_ply(tmp_path / "primitives.ply")
 
 
 def test_extract_run_filters_fits_and_writes_its_outputs(tmp_path):

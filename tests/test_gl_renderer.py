@@ -27,10 +27,12 @@ from edgedog.renderer.gl.splats import SplatRenderer
 from edgedog.renderer.gl.target import OffscreenTarget
 from edgedog.renderer.primitives import Primitives, RasterCamera
 from edgedog.renderer.rasterize import rasterize
-from raster_builders import random_primitives
 
 from edgedog.scenes.camera import Camera
 from edgedog.train.trainer import Snapshot
+from tests.helpers.raster_builders import random_primitives
+
+pytestmark = pytest.mark.gl
 
 WIDTH, HEIGHT = 200, 150
 
@@ -251,9 +253,10 @@ def render_in_a_window() -> None:
     assert error.mean() < 1 / 255 and error.max() < 8 / 255, f"max {error.max():.4f}, mean {error.mean():.5f}"
 
 
+@pytest.mark.xvfb
 def test_splats_draw_into_a_window_framebuffer(xvfb_display):
-    code = "import test_gl_renderer as t; t.render_in_a_window()"
-    result = subprocess.run([sys.executable, "-c", code], cwd=Path(__file__).parent,
+    code = "import tests.test_gl_renderer as t; t.render_in_a_window()"
+    result = subprocess.run([sys.executable, "-c", code], cwd=Path(__file__).parents[1],
                             env={**os.environ, "DISPLAY": xvfb_display}, capture_output=True, text=True,
                             timeout=120)
     assert result.returncode == 0, result.stderr[-2000:]

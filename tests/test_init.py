@@ -7,7 +7,6 @@ import dataclasses
 
 import numpy as np
 import pytest
-from conftest import shared_path as shared
 
 from edgedog.builtin_scene import ground_truth_points, write_box_scene
 from edgedog.errors import ConfigError, InputError
@@ -16,6 +15,7 @@ from edgedog.init.triangulate import edge_support
 from edgedog.scenes import load_scene
 from edgedog.scenes.camera import Camera
 from edgedog.scenes.common import look_at_point
+from tests.helpers.paths import shared_path as shared
 
 DTU_VIEWS = list(range(10, 20))  # neighbouring views of the second row of the DTU rig
 
@@ -135,6 +135,7 @@ def dtu_triangulated(tmp_path_factory):
     return scene, result
 
 
+@pytest.mark.slow
 def test_dtu_triangulation_with_known_cameras(dtu_triangulated):
     scene, result = dtu_triangulated
     assert result.method == "triangulated", result.report
@@ -150,6 +151,7 @@ def test_dtu_triangulation_with_known_cameras(dtu_triangulated):
     assert inside.mean() >= 0.95  # measured 0.999
 
 
+@pytest.mark.slow
 def test_dtu_triangulated_points_project_inside_the_object_masks(dtu_triangulated):
     scene, result = dtu_triangulated
     fractions = []

@@ -10,21 +10,21 @@ import cv2
 import numpy as np
 import pytest
 import torch
-from cli_runner import edgedog
 from edgedog.app.inspection import inspect_view
 from edgedog.app.layers import layer_members, list_new_layers, visible_subset
 from edgedog.renderer.config import RasterConfig
 from edgedog.renderer.primitives import RasterCamera
 from edgedog.renderer.rasterize import rasterize
-from tiny_runs import every_fifth_view, tiny_config
 
-from edgedog.edges.levels import CANNY_LEVELS, PIDINET_LEVELS, parse_level, resolve_levels
 from edgedog.edges.registry import make_detector
 from edgedog.errors import ConfigError
 from edgedog.scenes import load_scene
 from edgedog.train.layers import LowerLayers
+from edgedog.train.levels import CANNY_LEVELS, PIDINET_LEVELS, parse_level, resolve_levels
 from edgedog.train.model import GROUPS
 from edgedog.train.trainer import Trainer, read_stack
+from tests.helpers.cli_runner import edgedog
+from tests.helpers.tiny_runs import every_fifth_view, tiny_config
 
 LEVELS = ["--level", "L0=canny:150,300", "--level", "L1=canny:30,90"]
 TINY = ["--set", "epochs=3", "--set", "downscale=4", "--set", "init_count=400", "--set", "init_side=0.8",
@@ -134,6 +134,7 @@ def layered_run(builtin_scene_dir, tmp_path_factory):
     return run, result.stdout
 
 
+@pytest.mark.slow
 def test_layered_training_writes_every_layer_and_selection(layered_run):
     run, stdout = layered_run
     for name in ("L0", "L1", "curves/L0", "curves/L1", "curves/L0+L1"):
@@ -147,6 +148,7 @@ def test_layered_training_writes_every_layer_and_selection(layered_run):
     assert "L0+L1" in stdout and '"layer": "L1"' in stdout
 
 
+@pytest.mark.slow
 def test_layered_run_resumes_extracts_and_exports(layered_run, builtin_scene_dir, tmp_path):
     run, _ = layered_run
     stamp = (run / "L1" / "checkpoint.pt").stat().st_mtime_ns
@@ -167,6 +169,7 @@ def test_layered_run_resumes_extracts_and_exports(layered_run, builtin_scene_dir
     assert wrong.returncode == 2 and "stack from L0 up" in wrong.stderr
 
 
+@pytest.mark.slow
 def test_the_layers_figure_has_a_column_per_stack(layered_run):
     from edgedog.renderer.gl.context import GLUnavailableError
 
@@ -187,6 +190,7 @@ def test_the_layers_figure_has_a_column_per_stack(layered_run):
 
 
 # --- the studio's layer toggles
+@pytest.mark.slow
 def test_layer_toggles_select_primitives_in_the_render(layered_run):
     run, _ = layered_run
     from edgedog.train.layered import read_layered

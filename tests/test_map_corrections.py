@@ -9,13 +9,15 @@ import json
 import numpy as np
 import pytest
 import torch
-from tiny_runs import every_fifth_view
-from tiny_runs import tiny_config as shared_tiny_config
+from edgedog.renderer.rasterize import rasterize
 
-from edgedog.edges.correct import shift_edge_map
+from edgedog.edges.correct import blur_to_profile, shift_edge_map
 from edgedog.errors import ConfigError
+from edgedog.train.losses import projection_loss
 from edgedog.train.targets import LearnedShift, prepare_maps
 from edgedog.train.trainer import Trainer
+from tests.helpers.tiny_runs import every_fifth_view
+from tests.helpers.tiny_runs import tiny_config as shared_tiny_config
 
 
 def tiny_config(**changes):
@@ -83,17 +85,25 @@ def test_learned_shift_trains_resumes_exactly_and_is_logged(box, tmp_path):
     assert log["map_shift_px"] == [round(v, 4) for v in whole.learned_shift.value()]
 
 
-def test_fixed_shifts_and_the_profile_loss(box, tmp_path):
+def test_fixed_shifts_are_scaled_to_the_training_resolution(box, tmp_path):
     shifted = Trainer(box, tiny_config(map_correction="shift", map_shift=(2.0, -1.0), epochs=1,
                                        silhouette_correction="none"), tmp_path / "shift", progress=False)
     # The box's own maps are stored at 400 px and trained at 100 px: the shift is divided by 4.
     assert shifted.map_shift == (0.5, -0.25)
     original = box.load_edge_map(0, shifted.detector)
     np.testing.assert_allclose(shifted.targets[0].numpy(), shift_edge_map(original, 0.5, -0.25), atol=1e-6)
-    profile = Trainer(box, tiny_config(edge_profile="profile", profile_sigma=1.5, epochs=1), tmp_path / "p",
-                      progress=False)
-    profile.run()
-    assert np.isfinite(profile.snapshot().means).all()
+
+
+def test_the_profile_loss_compares_the_blurred_render_with_the_map(box, tmp_path):
+    box.views = box.views[:1]  # one view: the first step renders it
+    config = tiny_config(edge_profile="profile", profile_sigma=1.5, pixel_uncertainty=False, epochs=1)
+    trainer = Trainer(box, config, tmp_path / "p", progress=False)
+    with torch.no_grad():
+        render = rasterize(trainer.model.primitives(), trainer.cameras[0], trainer.raster).image[..., 0]
+    blurred = projection_loss(blur_to_profile(render, 1.5), trainer.targets[0], None).item()
+    sharp = projection_loss(render, trainer.targets[0], None).item()
+    assert abs(blurred - sharp) > 0.01 * sharp  # the blur matters here, so the check below can tell
+    assert trainer.step() == pytest.approx(blurred, rel=1e-5)
 
 
 def test_calibrated_needs_a_record(box, tmp_path, monkeypatch):

@@ -10,7 +10,6 @@ import numpy as np
 import pytest
 import torch
 import torch.nn.functional as F
-from conftest import shared_path
 
 from edgedog.edges.pidinet import (
     WEIGHTS_MISSING,
@@ -20,6 +19,7 @@ from edgedog.edges.pidinet import (
     pidinet_weights,
 )
 from edgedog.errors import InputError
+from tests.helpers.paths import shared_path
 
 URL = "https://github.com/hellozhuo/pidinet"
 

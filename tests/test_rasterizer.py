@@ -2,7 +2,7 @@
 
 The reference (`backend="torch"`, float64 primitives on the CPU) is the ground truth: it is
 itself checked with `torch.autograd.gradcheck`. Every test of the kernels runs once per device
-that has kernels (`@each_device`, see tests/backends.py; the C++ CPU kernels today). The C++
+that has kernels (`@each_device`, see tests/helpers/backends.py; the C++ CPU kernels today). The C++
 kernels compute in float32 (projection maths in double), so their outputs and gradients are
 compared with tolerances relative to each tensor's scale (its largest magnitude): measured
 worst errors are about 1e-5 of the scale, the tolerances are 1e-4 of it, and a deliberate 1%
@@ -17,8 +17,8 @@ import math
 
 import pytest
 import torch
-from backends import each_device, on_device
 from edgedog.renderer import _torch_ref as ref
+from edgedog.renderer import footprint as fp
 from edgedog.renderer import load_extension, ops
 from edgedog.renderer.config import (
     ALPHA_MAX,
@@ -30,9 +30,10 @@ from edgedog.renderer.config import (
 )
 from edgedog.renderer.primitives import Primitives, RasterCamera, activate
 from edgedog.renderer.rasterize import fisher_information, fisher_reference, rasterize
-from raster_builders import random_primitives
 
 from edgedog.builtin_scene import orbit_cameras
+from tests.helpers.backends import each_device, on_device
+from tests.helpers.raster_builders import random_primitives
 
 F64 = torch.float64
 PARAMS = ("means", "log_scales", "quats", "opacity_logits", "k_raw", "colors")
@@ -310,7 +311,7 @@ def test_gradcheck_dog_profile():
     for t_value in (0.0, 0.2, 0.49, 0.51, 0.8, 0.97, 0.9999):
         t = torch.full_like(u, t_value).requires_grad_(True)
         uu = u.clone().requires_grad_(True)
-        assert torch.autograd.gradcheck(ref.dog_profile, (uu, t), eps=1e-7, atol=1e-7, rtol=1e-5), t_value
+        assert torch.autograd.gradcheck(fp.dog_profile, (uu, t), eps=1e-7, atol=1e-7, rtol=1e-5), t_value
 
 
 def _tiny_scene():
@@ -362,7 +363,7 @@ def test_dog_profile_special_values():
     u = torch.linspace(0, 8, 81, dtype=F64)
     ts = torch.tensor([0.0, 1e-9, 0.1, 0.5, 0.7, 0.99, 1 - 1e-7], dtype=F64)
     for t in ts:
-        D = ref.dog_profile(u, t.expand_as(u))
+        D = fp.dog_profile(u, t.expand_as(u))
         assert D[0] == pytest.approx(1.0, abs=1e-12)  # D(0) = 1
         assert D.max() <= 1 + 1e-12
         # The direct formula where it is well conditioned; for t > 0.5 the stable form uses the
@@ -371,14 +372,14 @@ def test_dog_profile_special_values():
             direct = (torch.exp(-u) - t * torch.exp(-t * u)) / (1 - t)
             torch.testing.assert_close(D, direct, rtol=0, atol=1e-12 if t <= 0.5 else 1e-8)
     # t = 0: the Gaussian.
-    torch.testing.assert_close(ref.dog_profile(u, torch.zeros_like(u)), torch.exp(-u), rtol=0, atol=0)
+    torch.testing.assert_close(fp.dog_profile(u, torch.zeros_like(u)), torch.exp(-u), rtol=0, atol=0)
     # t -> 1: exp(-u) (1 - u) (the difference is O(1 - t) = 1e-7).
     limit = torch.exp(-u) * (1 - u)
-    torch.testing.assert_close(ref.dog_profile(u, torch.full_like(u, 1 - 1e-7)), limit, rtol=0, atol=1e-6)
-    torch.testing.assert_close(ref.dog_profile(u, torch.ones_like(u)), limit, rtol=0, atol=1e-15)
+    torch.testing.assert_close(fp.dog_profile(u, torch.full_like(u, 1 - 1e-7)), limit, rtol=0, atol=1e-6)
+    torch.testing.assert_close(fp.dog_profile(u, torch.ones_like(u)), limit, rtol=0, atol=1e-15)
     # float32 at t = 1 - 1e-7 (rounds to 1 - 2^-24 or 1) and at 1: finite, close to the limit.
     for t32 in (1 - 1e-7, 1.0, 0.9999):
-        D32 = ref.dog_profile(u.float(), torch.full_like(u.float(), t32))
+        D32 = fp.dog_profile(u.float(), torch.full_like(u.float(), t32))
         assert torch.isfinite(D32).all()
         torch.testing.assert_close(D32.double(), limit, rtol=0, atol=2e-4)
 
@@ -388,28 +389,28 @@ def test_dog_profile_gradients_finite_near_one():
         u = torch.linspace(0, 6, 25, dtype=dtype, requires_grad=True)
         t = torch.full((25,), 1.0, dtype=dtype) - torch.tensor(1e-7, dtype=dtype)
         t.requires_grad_(True)
-        gu, gt = torch.autograd.grad(ref.dog_profile(u, t).sum(), (u, t))
+        gu, gt = torch.autograd.grad(fp.dog_profile(u, t).sum(), (u, t))
         assert torch.isfinite(gu).all() and torch.isfinite(gt).all()
 
 
 def test_dog_profile_continuity_across_branches():
     u = torch.linspace(0, 8, 161, dtype=F64)
     # The branch boundary s = 1 - t = 0.5.
-    below = ref.dog_profile(u, torch.full_like(u, 0.5 - 1e-12))
-    above = ref.dog_profile(u, torch.full_like(u, 0.5 + 1e-12))
+    below = fp.dog_profile(u, torch.full_like(u, 0.5 - 1e-12))
+    above = fp.dog_profile(u, torch.full_like(u, 0.5 + 1e-12))
     torch.testing.assert_close(below, above, rtol=0, atol=1e-8)  # the series error, see above
     # The series limit |s u| = 0.1 of phi: s = 0.1, u around 1.
-    x = torch.tensor([ref.SERIES_LIMIT - 1e-12, ref.SERIES_LIMIT + 1e-12, -ref.SERIES_LIMIT - 1e-12,
-                      -ref.SERIES_LIMIT + 1e-12], dtype=F64)
+    x = torch.tensor([fp.SERIES_LIMIT - 1e-12, fp.SERIES_LIMIT + 1e-12, -fp.SERIES_LIMIT - 1e-12,
+                      -fp.SERIES_LIMIT + 1e-12], dtype=F64)
     exact = torch.expm1(x) / x
-    torch.testing.assert_close(ref.phi(x), exact, rtol=0, atol=2e-8)  # the documented series error
+    torch.testing.assert_close(fp.phi(x), exact, rtol=0, atol=2e-8)  # the documented series error
     xs = torch.linspace(-0.3, 0.3, 601, dtype=F64)
     xs = xs[xs != 0]
-    torch.testing.assert_close(ref.phi(xs), torch.expm1(xs) / xs, rtol=0, atol=2e-8)
-    assert ref.phi(torch.zeros(1, dtype=F64)).item() == 1.0
+    torch.testing.assert_close(fp.phi(xs), torch.expm1(xs) / xs, rtol=0, atol=2e-8)
+    assert fp.phi(torch.zeros(1, dtype=F64)).item() == 1.0
     t = torch.full((2,), 0.9, dtype=F64)
     uu = torch.tensor([1.0 - 1e-9, 1.0 + 1e-9], dtype=F64)  # s u = 0.1 -/+ 1e-10
-    D = ref.dog_profile(uu, t)
+    D = fp.dog_profile(uu, t)
     assert abs(D[0] - D[1]) < 1e-8
     direct = (torch.exp(-uu) - t * torch.exp(-t * uu)) / (1 - t)
     torch.testing.assert_close(D, direct, rtol=0, atol=1e-8)
@@ -417,23 +418,23 @@ def test_dog_profile_continuity_across_branches():
 
 def test_dog_zero_crossing():
     t = torch.tensor([1e-6, 0.01, 0.1, 1 / math.e, 0.5, 0.7, 0.9, 0.999], dtype=F64)
-    u0 = ref.dog_zero_crossing(t)
+    u0 = fp.dog_zero_crossing(t)
     torch.testing.assert_close(u0, -torch.log(t) / (1 - t), rtol=1e-12, atol=0)
-    torch.testing.assert_close(ref.dog_profile(u0, t), torch.zeros_like(t), rtol=0, atol=1e-12)
-    assert (ref.dog_profile(u0 * 0.99, t) > 0).all() and (ref.dog_profile(u0 * 1.01, t) < 0).all()
-    assert ref.dog_zero_crossing(torch.zeros(1, dtype=F64)).item() == math.inf
-    assert ref.dog_zero_crossing(torch.ones(1, dtype=F64)).item() == 1.0
-    near_one = ref.dog_zero_crossing(torch.tensor([1 - 1e-6], dtype=F64))
+    torch.testing.assert_close(fp.dog_profile(u0, t), torch.zeros_like(t), rtol=0, atol=1e-12)
+    assert (fp.dog_profile(u0 * 0.99, t) > 0).all() and (fp.dog_profile(u0 * 1.01, t) < 0).all()
+    assert fp.dog_zero_crossing(torch.zeros(1, dtype=F64)).item() == math.inf
+    assert fp.dog_zero_crossing(torch.ones(1, dtype=F64)).item() == 1.0
+    near_one = fp.dog_zero_crossing(torch.tensor([1 - 1e-6], dtype=F64))
     assert near_one.item() == pytest.approx(1.0, abs=1e-6)
 
 
 def test_support_u_reaches_alpha_min():
     opacity = torch.tensor([0.9, 0.5, 0.02, 0.9, 0.9, 1 / 300], dtype=F64)
     t = torch.tensor([0.0, 0.3, 0.5, 0.9, 1 - 1e-9, 0.5], dtype=F64)
-    support = ref.support_u(opacity, t)
+    support = fp.support_u(opacity, t)
     assert support[-1] == 0  # opacity below ALPHA_MIN: never visible
-    D_at = ref.dog_profile(support[:-1], t[:-1])
-    u0 = ref.dog_zero_crossing(t[:-1])
+    D_at = fp.dog_profile(support[:-1], t[:-1])
+    u0 = fp.dog_zero_crossing(t[:-1])
     # Either cut by alpha (alpha = ALPHA_MIN there, for the Gaussian exactly) or by the zero crossing.
     by_alpha = support[:-1] < u0 - 1e-9
     assert ((opacity[:-1] * D_at <= ALPHA_MIN * (1 + 1e-9)) | ~by_alpha).all()

@@ -1,7 +1,7 @@
 """Numerical stability of the rasterizer: no NaN or Inf in any output or gradient.
 
 Every case renders with the kernels of each device that has them (`@each_device`, see
-tests/backends.py; and, where cheap, with the float64 torch reference on the CPU), runs a
+tests/helpers/backends.py; and, where cheap, with the float64 torch reference on the CPU), runs a
 backward pass of a random-cotangent loss, and checks that the image, alpha, depth,
 means2d.grad and every parameter's .grad are finite, plus a property of the case.
 """
@@ -12,13 +12,13 @@ import math
 
 import pytest
 import torch
-from backends import each_device, on_device
 from edgedog.renderer.config import ALPHA_MAX, ALPHA_MIN, EARLY_STOP_T, FRUSTUM_SLACK, RasterConfig
 from edgedog.renderer.primitives import Primitives, RasterCamera, activate
 from edgedog.renderer.rasterize import fisher_information, fisher_reference, rasterize
-from raster_builders import random_primitives
 
 from edgedog.builtin_scene import orbit_cameras
+from tests.helpers.backends import each_device, on_device
+from tests.helpers.raster_builders import random_primitives
 
 F64 = torch.float64
 F32 = torch.float32

@@ -15,12 +15,12 @@ from pathlib import Path
 
 import pytest
 import torch
-from bad_inputs import edgedog, snapshot
 
 from edgedog.errors import InputError, OutputError
 from edgedog.files import atomic_write_json
 from edgedog.train.checkpoint import read_checkpoint
 from edgedog.train.run_folder import LOCK_FILE, RunLock, read_run
+from tests.helpers.bad_inputs import edgedog, snapshot
 
 TRAIN = ["--preset", "preview", "--set", "epochs=2", "--set", "init_count=300", "--quiet"]
 
@@ -86,6 +86,7 @@ def test_a_folder_that_is_not_a_run_is_never_written(tiny_scenes, tmp_path):
     assert "not an edgedog run folder" in result.stderr
 
 
+@pytest.mark.slow
 def test_resume_refuses_another_scene_and_new_settings(finished_run, tiny_scenes, tmp_path):
     run = tmp_path / "run"
     shutil.copytree(finished_run, run)
@@ -108,6 +109,7 @@ def test_resume_accepts_the_same_scene_moved(finished_run, tiny_scenes, tmp_path
     assert json.loads(result.stdout.splitlines()[0])["resumed_at_step"] > 0
 
 
+@pytest.mark.slow
 def test_a_second_writer_is_refused(tiny_scenes, finished_run, tmp_path):
     run = tmp_path / "run"
     shutil.copytree(finished_run, run)
@@ -145,6 +147,7 @@ def test_the_lock_is_exclusive_and_released(tmp_path):
         assert (tmp_path / "run" / LOCK_FILE).read_text().strip() == str(os.getpid())
 
 
+@pytest.mark.slow
 def test_ctrl_c_stops_cleanly_and_the_run_resumes(tiny_scenes, tmp_path):
     run = tmp_path / "run"
     argv = [sys.executable, "-m", "edgedog", "train", str(tiny_scenes[0]), "--out", str(run), "--preset",

@@ -11,7 +11,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from scene_builders import (
+
+from edgedog.errors import ConfigError, EdgeDogError, InputError
+from edgedog.scenes import detect_format, load_scene
+from edgedog.scenes.images import parse_background
+from tests.helpers.scene_builders import (
     ANGLE_X,
     SIZE,
     make_colmap,
@@ -22,10 +26,6 @@ from scene_builders import (
     write_json,
     write_png,
 )
-
-from edgedog.errors import ConfigError, EdgeDogError, InputError
-from edgedog.scenes import detect_format, load_scene
-from edgedog.scenes.images import parse_background
 
 # --- helpers -----------------------------------------------------------------------------------
 

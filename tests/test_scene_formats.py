@@ -14,10 +14,10 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
-from conftest import shared_path
-from scene_builders import circle_c2ws
 
 from edgedog.scenes import load_scene
+from tests.helpers.paths import shared_path
+from tests.helpers.scene_builders import circle_c2ws
 
 FLIP = np.diag([1.0, -1.0, -1.0, 1.0])  # OpenGL <-> OpenCV camera frame
 

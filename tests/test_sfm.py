@@ -9,12 +9,12 @@ import sys
 import cv2
 import numpy as np
 import pytest
-from conftest import shared_path as shared
 
 from edgedog.errors import EdgeDogError, InputError
 from edgedog.init import initialize
 from edgedog.init.sfm import align_similarity, run_sfm
 from edgedog.scenes import load_scene
+from tests.helpers.paths import shared_path as shared
 
 DTU_VIEWS = list(range(10, 20))  # neighbouring views of the second row of the DTU rig
 
@@ -66,6 +66,7 @@ def dtu_sfm(tmp_path_factory):
     return scene, photos, out
 
 
+@pytest.mark.slow
 def test_sfm_recovers_dtu_camera_centres(dtu_sfm):
     given, photos, out = dtu_sfm
     recovered = load_scene(out)
@@ -88,6 +89,7 @@ def test_sfm_recovers_dtu_camera_centres(dtu_sfm):
     assert "SfM points" in init.report["reason"]
 
 
+@pytest.mark.slow
 def test_sfm_output_folder_is_complete_and_not_overwritten(dtu_sfm, tmp_path):
     _, photos, out = dtu_sfm
     assert sorted(p.name for p in out.iterdir()) == ["images", "sparse"]
@@ -125,6 +127,7 @@ def test_unrelated_photos_that_do_not_register_are_a_one_line_error(tmp_path):
     assert [p.name for p in tmp_path.iterdir()] == ["photos"]  # no partial folder left behind
 
 
+@pytest.mark.slow
 def test_missing_folder_and_cli_success(tmp_path, dtu_sfm, capsys):
     with pytest.raises(InputError, match="not found"):
         run_sfm(tmp_path / "nowhere", tmp_path / "out")

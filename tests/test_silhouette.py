@@ -8,12 +8,12 @@ import json
 import cv2
 import numpy as np
 import pytest
-from tiny_runs import every_fifth_view, tiny_config
 
 from edgedog.edges.silhouette import Outline, OutlinePull, measure_silhouette_profile
 from edgedog.errors import InputError
 from edgedog.train.targets import corrects_silhouettes, prepare_maps, scene_outlines
 from edgedog.train.trainer import Trainer
+from tests.helpers.tiny_runs import every_fifth_view, tiny_config
 
 SIZE, CENTRE, RADIUS = 96, (47.3, 48.6), 30.0
 

@@ -415,6 +415,8 @@ def test_without_a_display_the_error_is_one_line(small_box):
     assert result.stderr.count("\n") == 1 and "edgedog train SCENE --out RUN" in result.stderr
 
 
+@pytest.mark.xvfb
+@pytest.mark.slow
 def test_the_window_trains_follows_the_ui_exports_and_closes(small_box, xvfb_display, tmp_path):
     shot = tmp_path / "studio.png"
     actions = [

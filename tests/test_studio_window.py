@@ -15,6 +15,8 @@ import pytest
 
 from edgedog.builtin_scene import write_box_scene
 
+pytestmark = pytest.mark.xvfb
+
 FAST = ["--set", "init_count=300", "--set", "checkpoint_every=1"]
 """Settings of the scripted runs: few primitives, a checkpoint every epoch."""
 

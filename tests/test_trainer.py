@@ -10,6 +10,7 @@ import pytest
 import torch
 
 from edgedog.errors import ConfigError
+from edgedog.primitives import read_ply
 from edgedog.scenes import load_scene
 from edgedog.train import losses
 from edgedog.train.config import TrainConfig, for_detector, preset, with_epochs, with_overrides
@@ -59,8 +60,9 @@ def test_density_control_events_and_outputs(box, tmp_path):
     for event in trainer.events:
         if event["event"] == "fisher_prune":
             assert event["after"] == round(0.9 * event["before"])
-        elif event["event"] == "duplicate":
-            assert event["after"] >= event["before"]
+        elif event["event"] == "duplicate":  # which rows, how many times: test_density_strategy.py
+            added = event["after"] - event["before"]
+            assert added > 0 and added % trainer.config.duplicate_copies == 0
         else:
             assert event["after"] <= event["before"]
     # Adam's moments stay aligned with the parameters through every change.
@@ -74,6 +76,13 @@ def test_density_control_events_and_outputs(box, tmp_path):
     assert (logged["direction_factor"], logged["ratio_factor"], logged["edge_profile"]) == (0.1, 0.05, "raw")
     snap = trainer.latest_snapshot
     assert snap.means.shape == (len(trainer.model), 3) and snap.step == trainer.step_index
+    # primitives.ply holds the final snapshot's activated arrays, which invert to the parameters.
+    saved = read_ply(tmp_path / "run" / "primitives.ply")
+    for name in ("means", "scales", "quats", "opacity", "k_raw"):
+        assert np.array_equal(getattr(saved, name), getattr(trainer.snapshot().primitives, name)), name
+    for name, values in saved.raw().items():
+        torch.testing.assert_close(torch.from_numpy(values), getattr(trainer.model, name).detach(),
+                                   rtol=1e-4, atol=1e-3)
 
 
 def test_the_baseline_switches_off_edgedog(box, tmp_path):

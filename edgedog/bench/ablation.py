@@ -14,9 +14,9 @@ from pathlib import Path
 
 from edgedog.bench.tables import cell
 from edgedog.errors import ConfigError, InputError
-from edgedog.files import atomic_write_bytes, atomic_write_json, read_json
+from edgedog.files import atomic_write_bytes, atomic_write_json
 from edgedog.train.config import TrainConfig
-from edgedog.train.run_folder import RunFolder, RunLock, check_same_run, write_run
+from edgedog.train.run_folder import RunFolder, RunLock
 
 COMPONENTS = "components"
 WEIGHTING = "weighting"
@@ -117,24 +117,12 @@ def run_name(config: TrainConfig) -> str:
 
 
 def train_and_extract(run: RunFolder, progress: bool) -> tuple[dict, dict]:
-    """Train (or resume, or reuse a finished) `run`, then extract and score its curves; returns
-    its log.json and extraction report."""
-    from edgedog.curves.report import REPORT, extract_with_report
-    from edgedog.scenes import load_scene
-    from edgedog.train.trainer import Trainer
+    """Train (or resume, or reuse a finished) `run`, then extract and score its curves unless a
+    finished run has them; returns its log.json and extraction report."""
+    from edgedog.train.lifecycle import REUSE, execute, plan_run
 
-    folder, config, log_path = run.path, run.config, run.path / "log.json"
-    check_same_run(run)
-    with RunLock.acquire(folder):
-        if log_path.is_file() and (folder / REPORT).is_file():
-            return read_json(log_path), read_json(folder / REPORT)
-        scene = load_scene(run.scene, downscale=config.downscale)
-        if not log_path.is_file():
-            write_run(run)
-            Trainer(scene, config, folder, progress).run()
-        log = read_json(log_path)
-        # Extraction rewrites any report left by an earlier, unfinished run.
-        return log, extract_with_report(folder, scene, log["detector"])[1]
+    result = execute(plan_run(run.path, run.scene, run.preset, run.config, REUSE), progress=progress)
+    return result.log, result.report
 
 
 def run_ablation(scene_path: Path, out: Path, preset_name: str, base: TrainConfig,
@@ -142,10 +130,13 @@ def run_ablation(scene_path: Path, out: Path, preset_name: str, base: TrainConfi
                  keys: tuple[str, ...] | None = None) -> list[dict]:
     """Train and score every row of the chosen tables, or the rows with `keys` among them (runs
     shared where configs coincide) in out/<run name>/; `base` is the preset `preset_name` with
-    any overrides. Writes out/ablation.json and out/ablation.md; returns the rows' results.
-    `out` is locked throughout: one bench writes its tables at a time."""
+    any overrides. Writes out/ablation.json and out/ablation.md once every row is done (a killed
+    bench resumes from the rows' run folders); returns the rows' results. `out` is locked
+    throughout: one bench writes its tables at a time."""
     with RunLock.acquire(out):
-        return _run_rows(select_rows(tables, keys), scene_path, out, preset_name, base, progress)
+        results = _run_rows(select_rows(tables, keys), scene_path, out, preset_name, base, progress)
+        write_report(out, results)
+    return results
 
 
 def _run_rows(rows: list[AblationRow], scene_path: Path, out: Path, preset_name: str, base: TrainConfig,
@@ -160,7 +151,6 @@ def _run_rows(rows: list[AblationRow], scene_path: Path, out: Path, preset_name:
         except ConfigError as error:  # e.g. no calibration record for these maps' detector
             results.append({"table": row.table, "label": row.label, "run": folder.name,
                             "skipped": str(error)})
-            write_report(out, results)
             continue
         if "metrics" not in report:
             raise InputError(scene_path, "the ablation needs a scene with ground truth")
@@ -171,7 +161,6 @@ def _run_rows(rows: list[AblationRow], scene_path: Path, out: Path, preset_name:
                         "train_seconds": log["train_seconds"], "primitives": log["final_primitives"],
                         "map_shift_px": log.get("map_shift_px"),
                         "outline_offset_px": (log.get("silhouette_correction") or {}).get("offset_px")})
-        write_report(out, results)
     return results
 
 

@@ -10,7 +10,6 @@ from pathlib import Path
 
 from edgedog.bench.ablation import train_and_extract
 from edgedog.bench.tables import cell
-from edgedog.edges.levels import Level, check_level_maps
 from edgedog.errors import InputError
 from edgedog.files import atomic_write_bytes, atomic_write_json, read_json
 from edgedog.train.config import TrainConfig
@@ -22,6 +21,7 @@ from edgedog.train.layered import (
     train_layered,
     write_layered,
 )
+from edgedog.train.levels import Level, check_level_maps
 from edgedog.train.run_folder import RunFolder, RunLock, check_new_run_folder
 
 DIRECT = "direct"

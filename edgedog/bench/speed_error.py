@@ -15,9 +15,6 @@ import csv
 import dataclasses
 import io
 import math
-import random
-from collections.abc import Iterator
-from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -26,10 +23,11 @@ from edgedog.bench.tables import cell
 from edgedog.errors import ConfigError, InputError
 from edgedog.files import atomic_write_bytes, atomic_write_json, read_json
 from edgedog.train.config import TrainConfig, preset, with_epochs, with_overrides
-from edgedog.train.run_folder import RunFolder, RunLock, check_same_run, write_run
+from edgedog.train.run_folder import RunFolder, RunLock, write_run
 
 if TYPE_CHECKING:  # torch and the scene loaders load only when a bench runs
     from edgedog.scenes import Scene
+    from edgedog.train.lifecycle import RunPlan
     from edgedog.train.trainer import Trainer
 
 RESULT = "speed_error.json"
@@ -141,35 +139,14 @@ def read_result(folder: Path, eval_epochs: list[int]) -> BudgetResult | None:
 
 
 
-
-@contextmanager
-def preserved_random_state() -> Iterator[None]:
-    """Put torch's, numpy's and Python's global random states back on exit.
-
-    The trainer draws from its own generator, and extraction from local ones; this keeps a
-    later change to either from making an evaluated run train differently from a plain one
-    (the checkpoint carries the global states too)."""
-    import numpy as np
-    import torch
-
-    states = torch.get_rng_state(), np.random.get_state(), random.getstate()
-    try:
-        yield
-    finally:
-        torch.set_rng_state(states[0])
-        np.random.set_state(states[1])
-        random.setstate(states[2])
-
-
 def evaluate(trainer: Trainer, scene: Scene) -> EvalPoint:
     """Checkpoint `trainer` (a resumed bench restarts from here), write its outputs, extract and
     score its curves (RUN/extract.json); returns the evaluation point."""
     from edgedog.curves.report import extract_with_report
 
     trainer.save_checkpoint()
-    with preserved_random_state():
-        trainer.write_outputs()
-        _, report = extract_with_report(trainer.out, scene, trainer.detector)
+    trainer.write_outputs()
+    _, report = extract_with_report(trainer.out, scene, trainer.detector)
     metrics, counts = report["metrics"], report["counts"]
     return EvalPoint(trainer.epoch, round(trainer.seconds, 3), len(trainer.model),
                      counts["lines"] + counts["beziers"], metrics.get("curves"), metrics.get("points"))
@@ -178,26 +155,30 @@ def evaluate(trainer: Trainer, scene: Scene) -> EvalPoint:
 def run_budget(run: RunFolder, budget: str, evals: int, progress: bool) -> BudgetResult:
     """Train `run` (or resume it, or reuse it when every evaluation is recorded), evaluating it
     at `evals` evenly spaced epochs; returns its evaluations."""
-    check_same_run(run)
+    from edgedog.train.lifecycle import REUSE, plan_run, replan
+
+    plan = plan_run(run.path, run.scene, run.preset, run.config, REUSE).check()
     with RunLock.acquire(run.path):
-        return _train_budget(run, budget, evals, progress)
+        return _train_budget(replan(plan).check(), budget, evals, progress)
 
 
-def _train_budget(run: RunFolder, budget: str, evals: int, progress: bool) -> BudgetResult:
+def _train_budget(plan: RunPlan, budget: str, evals: int, progress: bool) -> BudgetResult:
     """`run_budget` under the run folder's lock."""
     from tqdm import tqdm
 
-    from edgedog.scenes import load_scene
+    from edgedog.train.lifecycle import NEW, load_run_scene
     from edgedog.train.trainer import CHECKPOINT, Trainer
 
+    run = plan.run
     eval_epochs = evaluation_epochs(run.config.epochs, evals)
     result = read_result(run.path, eval_epochs)
     if result is not None and result.finished:
         return result
-    scene = load_scene(run.scene, downscale=run.config.downscale)
+    scene = load_run_scene(run.scene, run.config)
     if scene.ground_truth is None:
         raise InputError(run.scene, "the speed-error bench needs a scene with ground truth")
-    write_run(run)
+    if plan.state == NEW:
+        write_run(run)
     trainer = Trainer(scene, run.config, run.path, progress)
     if result is None:
         camera = scene.camera(0)

@@ -173,8 +173,8 @@ def run_speed_error(args: argparse.Namespace) -> None:
 
 def run_layers(args: argparse.Namespace) -> None:
     from edgedog.bench.layers import markdown, run_layers_bench
-    from edgedog.edges.levels import resolve_levels
     from edgedog.train.config import preset, with_overrides
+    from edgedog.train.levels import resolve_levels
 
     names = [name.strip() for name in args.layers.split(",") if name.strip()]
     levels = resolve_levels(names, args.levels)

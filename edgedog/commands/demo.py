@@ -8,6 +8,7 @@ import time
 from pathlib import Path
 
 from edgedog.builtin_scene import builtin_scene_path
+from edgedog.commands.reports import print_report
 from edgedog.files import default_cache
 
 
@@ -28,13 +29,9 @@ def add_parser(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> None:
-    from edgedog.commands.extract import print_report
-    from edgedog.curves.report import extract_with_report
-    from edgedog.files import read_json
-    from edgedog.scenes import load_scene
     from edgedog.train.config import preset
-    from edgedog.train.run_folder import RunFolder, RunLock, check_same_run, config_digest, write_run
-    from edgedog.train.trainer import Trainer
+    from edgedog.train.lifecycle import FINISHED, REUSE, execute, load_run_scene, plan_run
+    from edgedog.train.run_folder import config_digest
 
     start = time.perf_counter()
     folder = builtin_scene_path(args.cache, progress=not args.quiet)
@@ -43,20 +40,13 @@ def run(args: argparse.Namespace) -> None:
     # Named after the scene and the configuration: a demo run of an older version's scene or
     # defaults is never resumed, nor refused in the way of this one.
     out = args.out or (args.cache or default_cache()) / "runs" / f"demo-{folder.name}-{config_digest(config)}"
-    run_folder = RunFolder(out, folder, "preview", config)
-    check_same_run(run_folder)
-    scene = load_scene(folder, downscale=config.downscale)
-    with RunLock.acquire(out):
-        check_same_run(run_folder)  # again under the lock
-        write_run(run_folder)
-        trainer = Trainer(scene, config, out, progress=not args.quiet)
-        if trainer.done and (out / "log.json").is_file():
-            print(f"reusing the finished demo run in {out}")
-        else:
-            trainer.run()
-        log = read_json(out / "log.json")
-        _, report = extract_with_report(out, scene, trainer.detector)
-    print(f"scene      {folder} ({len(scene)} views, {trainer.detector} edge maps; "
+    plan = plan_run(out, folder, "preview", config, REUSE).check()
+    if plan.state == FINISHED:
+        print(f"reusing the finished demo run in {out}")
+    scene = load_run_scene(folder, config)
+    result = execute(plan, scene, progress=not args.quiet)
+    log, report = result.log, result.report
+    print(f"scene      {folder} ({len(scene)} views, {log['detector']} edge maps; "
           f"ready in {generated:.1f} s)")
     print(f"trained    {log['final_primitives']} primitives (from {log['initial_primitives']}) "
           f"in {log['train_seconds']:.1f} s")

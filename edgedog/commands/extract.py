@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from edgedog.commands.reports import print_layers_report, print_report
 from edgedog.errors import InputError
 
 
@@ -22,18 +23,6 @@ def add_parser(subparsers) -> None:
     parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                         help="override a setting of edgedog.curves.config.ExtractConfig (repeatable)")
     parser.set_defaults(run=run)
-
-
-def print_report(report: dict) -> None:
-    """The counts, then a table of the points' and curves' scores when there is ground truth."""
-    for name, count in report["counts"].items():
-        print(f"{name.replace('_', ' '):<18} {count}")
-    if "metrics" in report:
-        print(f"vs {report['ground_truth']}")
-        print(f"{'':<8} {'Acc (mm)':>8} {'Comp (mm)':>9} {'F5':>7} {'F10':>7} {'F20':>7}")
-        for name, m in report["metrics"].items():
-            print(f"{name:<8} {m['acc_mm']:8.2f} {m['comp_mm']:9.2f} {m['fscore_5mm']:7.2f} "
-                  f"{m['fscore_10mm']:7.2f} {m['fscore_20mm']:7.2f}")
 
 
 def run(args: argparse.Namespace) -> None:
@@ -61,7 +50,6 @@ def run(args: argparse.Namespace) -> None:
 
 def extract_layered_run(path: Path, config) -> None:
     """Every layer alone and every cumulative stack of a layered run, with a table."""
-    from edgedog.commands.train import print_layers_report
     from edgedog.scenes import load_scene
     from edgedog.train.layered import REPORT, extract_layered, read_layered
 

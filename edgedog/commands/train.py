@@ -6,6 +6,7 @@ import argparse
 import json
 from pathlib import Path
 
+from edgedog.commands.reports import print_layers_report, print_report
 from edgedog.errors import InputError
 from edgedog.train.config import PRESETS
 
@@ -48,56 +49,22 @@ def resume_hint(args: argparse.Namespace) -> str:
 
 def run(args: argparse.Namespace) -> None:
     from edgedog.train.layered import is_layered
+    from edgedog.train.lifecycle import CONTINUE, START, plan_run
 
     if args.layers is not None or is_layered(args.out):
         return run_layered(args)
-    from edgedog.train.run_folder import RunFolder, RunLock, check_new_run_folder, write_run
-
     if args.resume:
         reject_settings_on_resume(args)
-        run = resumable_run(args.out)
-        scene = scene_of_run(run, args.scene)
-        with RunLock.acquire(args.out):
-            train_and_report(run, scene, args.quiet)
-        return
-    config = _config(args)
-    check_new_run_folder(args.out)
-    scene = scene_for(args.scene, config)
-    run = RunFolder(args.out, scene.root, args.preset or "paper", config, _fingerprint(scene))
-    with RunLock.acquire(args.out):
-        check_new_run_folder(args.out)  # again under the lock: another process may have started here
-        write_run(run)
-        train_and_report(run, scene, args.quiet)
+        plan = plan_run(args.out, args.scene, policy=CONTINUE)
+    else:
+        plan = plan_run(args.out, args.scene, args.preset or "paper", _config(args), START)
+    train_and_report(plan, args.quiet)
 
 
 def _config(args: argparse.Namespace):
     from edgedog.train.config import preset, with_overrides
 
     return with_overrides(preset(args.preset or "paper"), args.overrides)
-
-
-def _fingerprint(scene) -> str:
-    from edgedog.scenes.fingerprint import scene_fingerprint
-
-    return scene_fingerprint(scene)
-
-
-def scene_for(path: str, config):
-    """The scene at the config's resolution, with the config's edge maps known to be available
-    (the scene's own, or a detector's): checked before anything is written."""
-    from edgedog.edges.registry import make_detector
-    from edgedog.scenes import load_scene
-
-    scene = load_scene(path, downscale=config.downscale)
-    if len(scene) == 0:
-        raise InputError(scene.root, "the scene has no views")
-    if config.detector != "auto" and config.detector not in scene.detectors:
-        make_detector(config.detector)
-    if scene.damaged:  # training reads every view's files: refuse now, not mid-run
-        path, problem = next(iter(scene.damaged.items()))
-        others = f" (and {len(scene.damaged) - 1} more damaged images)" if len(scene.damaged) > 1 else ""
-        raise InputError(path, problem + others)
-    return scene
 
 
 def reject_settings_on_resume(args: argparse.Namespace) -> None:
@@ -110,55 +77,29 @@ def reject_settings_on_resume(args: argparse.Namespace) -> None:
                                    "cannot change them (start a new run with another --out)")
 
 
-def resumable_run(path: Path):
-    """The run in `path`, for --resume."""
-    from edgedog.train.run_folder import RUN_CONFIG, read_run
+def train_and_report(plan, quiet: bool) -> None:
+    """Execute `plan` (a new run, or one continued from its checkpoint), print where it starts,
+    its training and its curves."""
+    from edgedog.train.lifecycle import execute
 
-    if not path.is_dir():
-        raise InputError(path, "run folder not found; nothing to resume")
-    if not (path / RUN_CONFIG).is_file():
-        raise InputError(path, "is not an edgedog run folder (no config.json of ours); nothing to resume")
-    return read_run(path)
+    def announce(trainer) -> None:
+        print(json.dumps({"detector": trainer.detector, "init": trainer.init_report.get("method"),
+                          "initial_primitives": trainer.initial_count,
+                          "resumed_at_step": trainer.step_index}))
 
-
-def scene_of_run(run, path: str):
-    """The scene `path` loaded for `run`, refused when it is not the scene the run trained on: the
-    same cameras and images (by fingerprint; the folder may have moved), or, for runs that
-    recorded no fingerprint, the same folder."""
-    scene = scene_for(path, run.config)
-    if run.scene_fingerprint is None:
-        if scene.root != run.scene.resolve():
-            raise InputError(run.path, f"was trained on {run.scene}, not {scene.root}; pass that scene")
-    elif _fingerprint(scene) != run.scene_fingerprint:
-        raise InputError(run.path, f"was trained on {run.scene} (fingerprint {run.scene_fingerprint}); "
-                                   f"{scene.root} has other cameras or images "
-                                   f"(fingerprint {_fingerprint(scene)}); pass the run's scene")
-    return scene
-
-
-def train_and_report(run, scene, quiet: bool) -> None:
-    """Train (or continue) `run` on `scene`, write its outputs, extract and print its curves."""
-    from edgedog.commands.extract import print_report
-    from edgedog.curves.report import extract_with_report
-    from edgedog.files import read_json
-    from edgedog.train.trainer import Trainer
-
-    trainer = Trainer(scene, run.config, run.path, progress=not quiet)
-    print(json.dumps({"detector": trainer.detector, "init": trainer.init_report.get("method"),
-                      "initial_primitives": trainer.initial_count, "resumed_at_step": trainer.step_index}))
-    trainer.run()
-    log = read_json(run.path / "log.json")
+    result = execute(plan.check(), progress=not quiet, on_trainer=announce)
+    log = result.log
     print(f"trained {log['final_primitives']} primitives (from {log['initial_primitives']}) in "
           f"{log['train_seconds']} s")
-    _, report = extract_with_report(run.path, scene, trainer.detector)
-    print_report(report)
-    print(f"outputs in {run.path}")
+    print_report(result.report)
+    print(f"outputs in {plan.run.path}")
 
 
 def run_layered(args: argparse.Namespace) -> None:
     """`--layers`: progressive training of the levels, then curves per layer and cumulative."""
-    from edgedog.edges.levels import check_level_maps, resolve_levels
     from edgedog.train.layered import LayeredRun, is_layered, read_layered, write_layered
+    from edgedog.train.levels import check_level_maps, resolve_levels
+    from edgedog.train.lifecycle import load_run_scene
     from edgedog.train.run_folder import RunLock, check_new_run_folder
 
     if args.resume:
@@ -169,7 +110,7 @@ def run_layered(args: argparse.Namespace) -> None:
         if not is_layered(args.out):
             raise InputError(args.out, "no layered run to resume (layers.json is missing)")
         run = read_layered(args.out)
-        scene = scene_for(args.scene, run.base)
+        scene = load_run_scene(args.scene, run.base)
         if scene.root != run.scene.resolve():
             raise InputError(args.out, f"was trained on {run.scene}, not {scene.root}; pass that scene")
     else:
@@ -182,7 +123,7 @@ def run_layered(args: argparse.Namespace) -> None:
             raise InputError(args.out, f"--layers {args.layers!r}: name at least one layer, e.g. L0,L1")
         config = _config(args)
         levels = resolve_levels(names, args.levels)
-        scene = scene_for(args.scene, config)
+        scene = load_run_scene(args.scene, config)
         check_level_maps(levels, scene.detectors)
         run = LayeredRun(args.out, scene.root, args.preset or "paper", config, levels)
     with RunLock.acquire(args.out):
@@ -209,17 +150,3 @@ def train_layered_and_report(run, scene, progress: bool, on_layer=None) -> dict:
     print_layers_report(report)
     print(f"outputs in {run.path}")
     return report
-
-
-def print_layers_report(report: dict) -> None:
-    """One row per selection: primitives, curves, and the curves' scores when there is ground truth."""
-    print(f"{'layers':<12} {'primitives':>10} {'curves':>6} {'Acc':>6} {'Comp':>6} {'P10':>6} {'R10':>6} "
-          f"{'F10':>6} {'F20':>6}")
-    for name, selection in report["selections"].items():
-        counts = selection["counts"]
-        row = f"{name:<12} {selection['primitives']:>10} {counts['lines'] + counts['beziers']:>6}"
-        curves = selection.get("metrics", {}).get("curves")
-        if curves:
-            row += (f" {curves['acc_mm']:6.2f} {curves['comp_mm']:6.2f} {curves['precision_10mm']:6.1f} "
-                    f"{curves['recall_10mm']:6.1f} {curves['fscore_10mm']:6.1f} {curves['fscore_20mm']:6.1f}")
-        print(row)

@@ -1,5 +1,5 @@
-"""The public extraction API: oriented edge points -> parametric curves, and a run folder's
-primitives -> filtered points and curves written beside them."""
+"""The public extraction API: oriented edge points -> parametric curves, primitives in memory ->
+filtered points and curves, and a run folder's primitives -> those written beside them."""
 
 from __future__ import annotations
 
@@ -12,9 +12,9 @@ import numpy as np
 from edgedog.curve_files import EdgeCurves, write_edges, write_point_columns
 from edgedog.curves import filtering, fitting, grouping, junctions, topology
 from edgedog.curves.config import ExtractConfig
-from edgedog.curves.primitives import EdgePrimitives, read_primitives
 from edgedog.errors import InputError
 from edgedog.files import read_json
+from edgedog.primitives import UNCERTAINTY, EdgePrimitives, read_ply
 from edgedog.scenes import Scene, load_scene
 
 OUTPUTS = ("curves.json", "curves.obj", "curves.ply", "edge_points.ply")
@@ -142,8 +142,25 @@ def write_edge_points(path: Path, points: EdgePrimitives, directions: np.ndarray
     columns.update({name: directions[:, i] for i, name in enumerate(("dx", "dy", "dz"))})
     columns.update({"opacity": points.opacity, "k_0": points.k[:, 0], "k_1": points.k[:, 1]})
     if points.uncertainty is not None:
-        columns["uncertainty"] = points.uncertainty
+        columns[UNCERTAINTY] = points.uncertainty
     write_point_columns(path, columns)
+
+
+def extract_primitives(primitives: EdgePrimitives, config: ExtractConfig = ExtractConfig(),
+                       scene: Scene | None = None, detector: str | None = None) -> RunExtraction:
+    """Filter primitives and fit curves to them, writing nothing.
+
+    Args:
+        primitives: e.g. `EdgePrimitives.from_arrays` of a snapshot's or a PLY's primitives.
+        scene, detector: the run's scene and the name of its edge maps (loaded), needed by the
+            projection filter (the silhouette filter needs the scene only).
+    """
+    counts: dict[str, int] = {}
+    points = filter_primitives(primitives, config, scene, detector, counts)
+    directions = edge_directions(points, config)
+    curves, chains = extract_curves(points.points, directions, config)
+    counts.update(chains=len(chains), lines=len(curves.lines), beziers=len(curves.beziers))
+    return RunExtraction(curves, points, directions, counts)
 
 
 def extract_run(run_dir: str | Path, config: ExtractConfig = ExtractConfig(), scene: Scene | None = None,
@@ -160,17 +177,13 @@ def extract_run(run_dir: str | Path, config: ExtractConfig = ExtractConfig(), sc
     """
     run_dir = Path(run_dir)
     out_dir = run_dir if out_dir is None else Path(out_dir)
-    primitives = read_primitives(run_dir / "primitives.ply")
+    primitives = EdgePrimitives.from_arrays(read_ply(run_dir / "primitives.ply"))
     if layers is not None:
         primitives = primitives.in_layers(layers)
     if (config.filter_projection or config.filter_silhouette) and (scene is None or detector is None):
         scene, detector = run_scene(run_dir, maps=config.filter_projection)  # masks need no maps
-    counts: dict[str, int] = {}
-    points = filter_primitives(primitives, config, scene, detector, counts)
-    directions = edge_directions(points, config)
-    curves, chains = extract_curves(points.points, directions, config)
-    counts.update(chains=len(chains), lines=len(curves.lines), beziers=len(curves.beziers))
+    result = extract_primitives(primitives, config, scene, detector)
     for name in OUTPUTS[:3]:
-        write_edges(out_dir / name, curves)
-    write_edge_points(out_dir / "edge_points.ply", points, directions)
-    return RunExtraction(curves, points, directions, counts)
+        write_edges(out_dir / name, result.curves)
+    write_edge_points(out_dir / "edge_points.ply", result.points, result.directions)
+    return result

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from edgedog.curves.bezier import bernstein, bezier_derivatives
+from edgedog.bezier import bernstein, bezier_derivatives
 from edgedog.curves.grouping import Chain
 
 MIN_SPLIT_VERTICES = 4

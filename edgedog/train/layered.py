@@ -13,19 +13,24 @@ Layout of RUN (each layer folder is an ordinary run folder, so `edgedog extract`
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from edgedog.curves.config import ExtractConfig
-from edgedog.curves.primitives import read_primitives
 from edgedog.edges.cache import attach_edge_maps
-from edgedog.edges.levels import Level
 from edgedog.errors import InputError
 from edgedog.files import atomic_write_json, read_json
+from edgedog.primitives import read_ply
 from edgedog.scenes import Scene
 from edgedog.train.config import TrainConfig, from_dict, to_dict
-from edgedog.train.layers import LowerLayers
+from edgedog.train.levels import Level
+from edgedog.train.lifecycle import is_finished
 from edgedog.train.run_folder import RUN_CONFIG, RunFolder, write_run
+
+if TYPE_CHECKING:
+    from edgedog.train.trainer import Trainer
 
 LAYERS_FILE = "layers.json"
 REPORT = "layers_report.json"
@@ -69,30 +74,36 @@ def read_layered(path: Path) -> LayeredRun:
                       levels)
 
 
-def train_layered(run: LayeredRun, scene: Scene, progress: bool = True, on_layer=None) -> LowerLayers:
-    """Train the levels bottom up, each layer on its maps with the layers below fixed (finished
-    layers are reused, an interrupted one resumes). Returns the whole stack.
+def layer_trainers(run: LayeredRun, scene: Scene, progress: bool = True) -> Iterator[Trainer]:
+    """The trainers of the unfinished layers, bottom up, each built once the layers below it are
+    trained (finished layers are reused: a layer's checkpoint holds the whole stack up to it; an
+    interrupted one resumes). The caller trains each trainer before asking for the next.
 
     Args:
         scene: loaded at the base config's resolution.
-        on_layer: called with (index, trainer) before each layer trains (e.g. to print).
     """
     from edgedog.train.trainer import Trainer, read_stack
 
     lower = None
     for index in range(len(run.levels)):
         folder, config = run.layer_dir(index), run.layer_config(index)
-        if (folder / "log.json").is_file():  # finished: its checkpoint holds the whole stack
+        if is_finished(folder):
             lower = read_stack(folder)
             continue
         if not (folder / RUN_CONFIG).is_file():
             write_run(RunFolder(folder, run.scene, run.preset, config))
         trainer = Trainer(scene, config, folder, progress=progress, lower=lower)
-        if on_layer is not None:
-            on_layer(index, trainer)
-        trainer.run()
+        yield trainer
         lower = trainer.stack()
-    return lower
+
+
+def train_layered(run: LayeredRun, scene: Scene, progress: bool = True, on_layer=None) -> None:
+    """Train the levels bottom up, each layer on its maps with the layers below fixed
+    (`layer_trainers`); `on_layer` is called with (index, trainer) before each layer trains."""
+    for trainer in layer_trainers(run, scene, progress):
+        if on_layer is not None:
+            on_layer(trainer.config.layer, trainer)
+        trainer.run()
 
 
 def selections(count: int) -> list[tuple[str, set[int]]]:
@@ -114,7 +125,7 @@ def extract_layered(run: LayeredRun, scene: Scene, config: ExtractConfig = Extra
     from edgedog.curves.report import extract_with_report
 
     top = run.layer_dir(len(run.levels) - 1)
-    counts = read_primitives(top / "primitives.ply").layers
+    counts = read_ply(top / "primitives.ply").layers
     report = {"levels": [dataclasses.asdict(level) for level in run.levels], "selections": {}}
     for name, layers in selections(len(run.levels)):
         finest = run.layer_dir(max(layers))

@@ -9,15 +9,18 @@ import numpy as np
 import torch
 
 from edgedog.init.points import InitialPoints
-from edgedog.renderer._torch_ref import quat_to_rotmat
+from edgedog.primitives import RAW
+from edgedog.renderer.footprint import quat_to_rotmat
 from edgedog.renderer.primitives import Primitives
 
-GROUPS = ("means", "log_scales", "quats", "opacity_logits", "k_raw")
+GROUPS = RAW
+"""The parameter groups, one tensor (and optimizer) each (edgedog.primitives.SCHEMA)."""
 
 
 @dataclass
 class EdgeModel:
-    """N primitives' raw parameters (leaf tensors that require gradients).
+    """N primitives' raw parameters (leaf tensors that require gradients); `to_numpy` gives them
+    to `edgedog.primitives.PrimitiveArrays.from_raw`, which activates them.
 
     Attributes:
         means: (N, 3); log_scales: (N, 3); quats: (N, 4); opacity_logits: (N,); k_raw: (N, 2).
@@ -62,8 +65,7 @@ class EdgeModel:
         return {name: getattr(self, name) for name in GROUPS}
 
     def primitives(self) -> Primitives:
-        return Primitives(self.means, self.log_scales, self.quats, self.opacity_logits, self.k_raw,
-                          torch.ones(len(self), 1))
+        return Primitives(**self.tensors(), colors=torch.ones(len(self), 1))
 
     def replace(self, tensors: dict[str, torch.Tensor]) -> None:
         """Swap in new leaf tensors (after pruning or duplication)."""

@@ -6,7 +6,6 @@ copies, never live tensors) and changes `controls`, which apply at the next step
 
 from __future__ import annotations
 
-import random
 import resource
 import threading
 import time
@@ -23,6 +22,7 @@ from edgedog.edges.registry import make_detector
 from edgedog.errors import ConfigError, InputError
 from edgedog.files import atomic_write_json
 from edgedog.init import initialize
+from edgedog.primitives import PrimitiveArrays
 from edgedog.renderer.config import RasterConfig
 from edgedog.renderer.primitives import RasterCamera
 from edgedog.renderer.rasterize import rasterize
@@ -70,8 +70,8 @@ class Snapshot:
 
     Attributes:
         step, epoch: where training was; loss: the last projection loss.
-        means (N, 3), scales (N, 3), quats (N, 4), opacity (N,), k_raw (N, 2): numpy copies,
-            the fixed lower layers' primitives first.
+        means (N, 3), scales (N, 3), quats (N, 4), opacity (N,), k_raw (N, 2): numpy copies of
+            the activated parameters (edgedog.primitives.SCHEMA), the fixed lower layers' first.
         pruned_positions: (M, 3) centres removed by the last Fisher pruning.
         layers: (N,) int64 layer index of each primitive (None: all in layer 0).
     """
@@ -86,6 +86,11 @@ class Snapshot:
     k_raw: np.ndarray
     pruned_positions: np.ndarray
     layers: np.ndarray | None = None
+
+    @property
+    def primitives(self) -> PrimitiveArrays:
+        """The snapshot's primitives (its arrays, not copies)."""
+        return PrimitiveArrays(self.means, self.scales, self.quats, self.opacity, self.k_raw, self.layers)
 
 
 def _finite_grads(*models: EdgeModel) -> int:
@@ -103,11 +108,9 @@ def _finite_grads(*models: EdgeModel) -> int:
 def stack_snapshot(stack: LowerLayers, step: int = 0, epoch: int = 0, loss: float = float("nan"),
                    pruned_positions: np.ndarray | None = None) -> Snapshot:
     """A Snapshot (activated copies) of a whole layered model."""
-    m = stack.model.to_numpy()
-    opacity = 1 / (1 + np.exp(-m["opacity_logits"]))
+    p = PrimitiveArrays.from_raw(stack.model.to_numpy(), stack.layers.numpy())
     pruned = np.zeros((0, 3), np.float32) if pruned_positions is None else pruned_positions.copy()
-    return Snapshot(step, epoch, loss, m["means"], np.exp(m["log_scales"]), m["quats"], opacity, m["k_raw"],
-                    pruned, stack.layers.numpy())
+    return Snapshot(step, epoch, loss, p.means, p.scales, p.quats, p.opacity, p.k_raw, pruned, p.layers)
 
 
 def read_stack(run_dir: Path) -> LowerLayers:
@@ -133,6 +136,10 @@ class Trainer:
     `lower`: for a layer above the first (config.layer > 0), the layers below it, rendered with
     the model and kept fixed (or fine-tuned at `lower_lr_scale`). A resumed run takes them from
     its checkpoint.
+
+    Every random draw comes from `generator` (seeded with `config.seed`, saved in checkpoints)
+    or from numpy generators seeded from `config.seed` where they are used: no process-global
+    random state is read or set, so a run gives the same result whatever ran before it.
     """
 
     def __init__(self, scene: Scene, config: TrainConfig, out: Path, progress: bool = True,
@@ -183,7 +190,6 @@ class Trainer:
 
     def _initialise(self) -> None:
         c = self.config
-        torch.manual_seed(c.seed)
         points = initialize(self.scene, c.init_method, detector=self.detector, seed=c.seed,
                             uniform_count=c.init_count, uniform_side=c.init_side)
         if len(self.lower):
@@ -322,8 +328,7 @@ class Trainer:
             "config": to_dict(self.config), "step_index": self.step_index, "model": self.model.to_numpy(),
             "optimizers": self.optimizers.state_dict(), "absgrad": self.state.absgrad,
             "pruned_positions": self.state.pruned_positions, "fisher": self.state.fisher,
-            "generator": self.generator.get_state(), "torch_rng": torch.get_rng_state(),
-            "numpy_rng": np.random.get_state(), "python_rng": random.getstate(),
+            "generator": self.generator.get_state(),
             "history": self.history, "events": self.events, "seconds": self.seconds,
             "bad_gradients": self.bad_gradients, "init_report": self.init_report,
             "initial_count": self.initial_count, "detector": self.detector,
@@ -360,9 +365,6 @@ class Trainer:
         if self.learned_shift is not None:
             self.learned_shift.load_state_dict(saved["learned_shift"])
         self.generator.set_state(saved["generator"])
-        torch.set_rng_state(saved["torch_rng"])
-        np.random.set_state(to_numpy(saved["numpy_rng"]))
-        random.setstate(saved["python_rng"])
         self.step_index = int(saved["step_index"])
         self.history, self.events = saved["history"], saved["events"]
         self.seconds, self.bad_gradients = float(saved["seconds"]), int(saved["bad_gradients"])

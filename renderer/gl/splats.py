@@ -15,8 +15,8 @@ from typing import Protocol
 import moderngl
 import numpy as np
 import torch
-from edgedog.renderer import _torch_ref as ref
 from edgedog.renderer.config import ALPHA_MAX, ALPHA_MIN, FRUSTUM_SLACK, RasterConfig
+from edgedog.renderer.footprint import NEAR_LOG_T, SERIES_LIMIT, support_u
 from edgedog.renderer.gl.programs import load_program
 from edgedog.renderer.primitives import RasterCamera, dog_shape
 
@@ -58,7 +58,7 @@ def splat_texels(splats: SplatSource, config: RasterConfig) -> tuple[np.ndarray,
         if arrays[name].shape != shape:
             raise ValueError(f"{name} has shape {arrays[name].shape}, expected {shape}")
     a, t = dog_shape(torch.tensor(arrays["k_raw"]), config)  # copies: snapshots may be read-only
-    support = ref.support_u(torch.tensor(arrays["opacity"]), t).numpy()
+    support = support_u(torch.tensor(arrays["opacity"]), t).numpy()
     texels = np.zeros((n, 4, 4), np.float32)
     texels[:, 0] = np.column_stack([arrays["means"], arrays["opacity"]])
     texels[:, 1] = np.column_stack([arrays["scales"], a.numpy()])
@@ -103,8 +103,8 @@ class SplatRenderer:
     def __init__(self, ctx: moderngl.Context):
         self.ctx = ctx
         self.program = load_program(ctx, "splats", {"FRUSTUM_SLACK": FRUSTUM_SLACK, "ALPHA_MIN": ALPHA_MIN,
-                                                     "ALPHA_MAX": ALPHA_MAX, "NEAR_LOG_T": ref.NEAR_LOG_T,
-                                                     "SERIES_LIMIT": ref.SERIES_LIMIT})
+                                                     "ALPHA_MAX": ALPHA_MAX, "NEAR_LOG_T": NEAR_LOG_T,
+                                                     "SERIES_LIMIT": SERIES_LIMIT})
         self.program["u_params"].value = 0
         self.count = 0
         self.version: int | None = None

@@ -1,0 +1,1 @@
+"""Helpers shared by the test modules, imported as `from tests.helpers.NAME import ...`."""

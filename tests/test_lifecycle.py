@@ -1,0 +1,158 @@
+"""One run lifecycle: a plan (new / resume from step k / finished / refused) apart from its
+execution, one meaning of "finished" for every caller, and runs whose results do not depend on
+what ran before them in the process."""
+
+from __future__ import annotations
+
+import dataclasses
+import pickle
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from edgedog.errors import InputError
+from edgedog.scenes import load_scene
+from edgedog.train import layered, lifecycle
+from edgedog.train.config import preset
+from edgedog.train.lifecycle import (
+    CONTINUE,
+    FINISHED,
+    NEW,
+    REFUSED,
+    RESUME,
+    REUSE,
+    START,
+    execute,
+    is_finished,
+    plan_run,
+)
+from edgedog.train.run_folder import RunFolder, read_run, write_run
+from edgedog.train.trainer import Trainer
+from tests.helpers.bad_inputs import edgedog
+
+SETTINGS = {"epochs": 2, "init_count": 300, "checkpoint_every": 1}
+CLI_SETTINGS = [arg for key, value in SETTINGS.items() for arg in ("--set", f"{key}={value}")]
+
+
+def config(**changes):
+    return dataclasses.replace(preset("preview"), **SETTINGS, **changes)
+
+
+@pytest.fixture(scope="module")
+def scene_dir(tmp_path_factory) -> Path:
+    """A small box (12 views at 96 px, Canny maps)."""
+    root = tmp_path_factory.mktemp("scenes") / "box"
+    result = edgedog("make-scene", "--shape", "box", "--out", root, "--views", "12", "--size", "96",
+                     "--detector", "canny")
+    assert result.returncode == 0, result.stderr
+    return root
+
+
+@pytest.fixture(scope="module")
+def finished(scene_dir, tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("runs") / "finished"
+    execute(plan_run(out, scene_dir, "preview", config(), START), progress=False)
+    return out
+
+
+def _plain(value) -> bool:
+    """Whether `value` is plain data: no open file, tensor or array anywhere in it."""
+    if dataclasses.is_dataclass(value):
+        return all(_plain(getattr(value, f.name)) for f in dataclasses.fields(value))
+    if isinstance(value, (tuple, list)):
+        return all(_plain(item) for item in value)
+    return value is None or isinstance(value, (str, int, float, bool, Path))
+
+
+def test_a_plan_writes_nothing_and_is_plain_data(scene_dir, tmp_path):
+    out = tmp_path / "run"
+    plan = plan_run(out, scene_dir, "preview", config(), START)
+    assert plan.state == NEW and plan.step == 0 and not out.exists()
+    assert plan.run.scene_fingerprint and plan.run.scene == load_scene(scene_dir).root
+    assert _plain(plan) and pickle.loads(pickle.dumps(plan)) == plan
+
+
+def test_plans_of_a_finished_run(finished, scene_dir):
+    views = len(load_scene(scene_dir))
+    assert is_finished(finished)
+    resumed = plan_run(finished, scene_dir, policy=CONTINUE)
+    assert resumed.state == FINISHED and resumed.step == SETTINGS["epochs"] * views and resumed.extracted
+    assert resumed.run == read_run(finished)
+    reused = plan_run(finished, scene_dir, "preview", config(), REUSE)
+    assert reused.state == FINISHED
+    again = plan_run(finished, scene_dir, "preview", config(), START)
+    assert again.state == REFUSED and "pass --resume" in again.reason
+    other = plan_run(finished, scene_dir, "preview", config(seed=7), REUSE)
+    assert other.state == REFUSED and "another scene or configuration" in other.reason
+    with pytest.raises(InputError, match="another scene or configuration"):
+        execute(other)
+
+
+def test_refused_plans_say_why(scene_dir, tmp_path):
+    missing = plan_run(tmp_path / "nothing", scene_dir, policy=CONTINUE)
+    assert missing.state == REFUSED and "nothing to resume" in missing.reason
+    (tmp_path / "theirs").mkdir()
+    (tmp_path / "theirs" / "notes.txt").write_text("mine")
+    theirs = plan_run(tmp_path / "theirs", scene_dir, "preview", config(), REUSE)
+    assert theirs.state == REFUSED and theirs.refused_path == tmp_path / "theirs"
+    with pytest.raises(InputError, match="is not empty and is not an edgedog run folder"):
+        theirs.check()
+
+
+def test_an_interrupted_run_resumes_from_its_checkpoint_step(scene_dir, finished, tmp_path):
+    out = tmp_path / "run"
+    plan = plan_run(out, scene_dir, "preview", config(), REUSE)
+    write_run(plan.run)
+    scene = load_scene(scene_dir, downscale=config().downscale)
+    trainer = Trainer(scene, config(), out, progress=False)
+    while trainer.epoch < 1:  # the end of the first epoch saves a checkpoint
+        trainer.step()
+    resumed = plan_run(out, scene_dir, "preview", config(), REUSE)
+    assert resumed.state == RESUME and resumed.step == len(scene) and not resumed.extracted
+    result = execute(resumed, progress=False)
+    assert result.plan.state == RESUME and is_finished(out) and "counts" in result.report
+    assert (out / "primitives.ply").read_bytes() == (finished / "primitives.ply").read_bytes()
+
+
+def test_finished_means_one_thing(scene_dir, tmp_path):
+    """A log.json written mid-run (the speed bench's evaluations write one) is no finished run,
+    for the benches, the demo, `train --resume`, layered runs and the studio alike."""
+    out = tmp_path / "run"
+    run = RunFolder(out, load_scene(scene_dir).root, "preview", config())
+    write_run(run)
+    trainer = Trainer(load_scene(scene_dir, downscale=run.config.downscale), run.config, out, progress=False)
+    while trainer.epoch < 1:
+        trainer.step()
+    trainer.write_outputs()
+    assert (out / "log.json").is_file() and not is_finished(out)
+    assert plan_run(out, scene_dir, "preview", run.config, REUSE).state == RESUME
+    assert plan_run(out, scene_dir, policy=CONTINUE).state == RESUME
+    from edgedog.app import session
+
+    assert session.is_finished is layered.is_finished is lifecycle.is_finished
+
+
+def _primitives(out: Path) -> bytes:
+    return (out / "primitives.ply").read_bytes()
+
+
+def test_a_run_does_not_depend_on_what_ran_before_it_in_the_process(scene_dir, tmp_path):
+    """Two runs in one process, in either order and with the global generators disturbed, give
+    the primitives of each run made alone in a fresh process."""
+    fresh = {}
+    for seed in (1, 2):
+        fresh[seed] = tmp_path / f"fresh-{seed}"
+        result = edgedog("train", scene_dir, "--out", fresh[seed], "--preset", "preview", *CLI_SETTINGS,
+                         "--set", f"seed={seed}", "--quiet")
+        assert result.returncode == 0, result.stderr
+    for order in ((1, 2), (2, 1)):
+        for seed in order:
+            torch.manual_seed(1000 + seed)
+            np.random.seed(seed)
+            torch.rand(17), np.random.rand(3)
+            out = tmp_path / f"in-process-{order[0]}{order[1]}-{seed}"
+            execute(plan_run(out, scene_dir, "preview", config(seed=seed), START), progress=False)
+            assert _primitives(out) == _primitives(fresh[seed]), (order, seed)
+    assert _primitives(fresh[1]) != _primitives(fresh[2])
