@@ -32,11 +32,7 @@ from edgedog.metrics import (
     sample_line,
     sample_polyline,
 )
-from edgedog.scenes.camera import MAX_CAMERA_DISTANCE
-
-MAX_COORDINATE = MAX_CAMERA_DISTANCE
-"""Largest coordinate an edge file may hold: edges lie in a scene, whose cameras are within this
-distance of the origin; beyond it a coordinate is broken (1e300) or in other units."""
+from edgedog.world import MAX_COORDINATE
 
 
 @dataclass

@@ -13,6 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from edgedog.world import MAX_COORDINATE
+
 # Flips the Y and Z axes: turns an OpenGL/Blender camera frame (looks down -Z, +Y up) into an
 # OpenCV one and back (the matrix is its own inverse).
 OPENGL_TO_OPENCV = np.diag([1.0, -1.0, -1.0, 1.0])
@@ -122,11 +124,6 @@ def intrinsics(fx: float, fy: float, cx: float, cy: float) -> np.ndarray:
     return np.array([[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]])
 
 
-MAX_CAMERA_DISTANCE = 1e6
-"""Farthest a camera may be from the world origin, in scene units. Training works in float32 (7
-significant digits): a scene whose cameras lie farther out cannot resolve its object (re-centre
-it), and a pose of 1e30 is garbage."""
-
 FIELD_OF_VIEW_DEG = (0.01, 170.0)
 """Range of a pinhole camera's field of view across the image, in degrees: wider than 170 or
 narrower than 0.01 (a 10000 mm lens on a full-frame sensor gives 0.2) is a broken focal length."""
@@ -135,7 +132,7 @@ narrower than 0.01 (a 10000 mm lens on a full-frame sensor gives 0.2) is a broke
 def pose_problem(matrix: np.ndarray) -> str | None:
     """Why a (4, 4) or (3, 4) pose (world-to-camera or camera-to-world) is unusable, or None when
     it is a proper rigid transform: a rotation, a last row 0 0 0 1 and a camera centre within
-    MAX_CAMERA_DISTANCE of the origin."""
+    MAX_COORDINATE of the origin."""
     if matrix.shape not in ((4, 4), (3, 4)):
         return f"pose has shape {matrix.shape}, expected 4x4"
     if not np.all(np.isfinite(matrix)):
@@ -147,8 +144,8 @@ def pose_problem(matrix: np.ndarray) -> str | None:
         return "pose rotation is not a proper rotation (orthonormal, det +1)"
     # |t| is the camera centre's distance from the origin for both directions of a rigid pose.
     distance = float(np.linalg.norm(matrix[:3, 3]))
-    if distance > MAX_CAMERA_DISTANCE:
-        return (f"camera is {distance:.3g} units from the origin, more than {MAX_CAMERA_DISTANCE:.0e}: "
+    if distance > MAX_COORDINATE:
+        return (f"camera is {distance:.3g} units from the origin, more than {MAX_COORDINATE:.0e}: "
                 "float32 training cannot resolve such a scene (re-centre it)")
     return None
 

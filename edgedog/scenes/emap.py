@@ -13,7 +13,7 @@ import numpy as np
 from edgedog.errors import InputError
 from edgedog.files import read_json
 from edgedog.groundtruth import find_ground_truth
-from edgedog.scenes.camera import MAX_CAMERA_DISTANCE, rigid_inverse
+from edgedog.scenes.camera import rigid_inverse
 from edgedog.scenes.common import (
     check_view_count,
     checked_camera,
@@ -24,6 +24,7 @@ from edgedog.scenes.common import (
     metadata_errors,
 )
 from edgedog.scenes.scene import Scene, View
+from edgedog.world import MAX_COORDINATE
 
 
 def is_emap(root: Path) -> bool:
@@ -93,6 +94,6 @@ def _box_problem(aabb: np.ndarray) -> str | None:
     """Why `scene_box.aabb` (2, 3) [min, max] is not a box around the object, or None."""
     if not np.all(np.isfinite(aabb)) or not np.all(aabb[0] < aabb[1]):
         return f"scene_box.aabb {aabb.tolist()} is not [min, max] with finite min < max"
-    if np.abs(aabb).max() > MAX_CAMERA_DISTANCE:
-        return f"scene_box.aabb {aabb.tolist()} reaches beyond {MAX_CAMERA_DISTANCE:.0e} units"
+    if np.abs(aabb).max() > MAX_COORDINATE:
+        return f"scene_box.aabb {aabb.tolist()} reaches beyond {MAX_COORDINATE:.0e} units"
     return None
