@@ -23,6 +23,15 @@ def user_cache(tmp_path_factory) -> Path:
 
 
 @pytest.fixture(scope="session")
+def small_box_scene(tmp_path_factory) -> Path:
+    """A box made by `edgedog make-scene` (12 views at 96 px, Canny maps), shared by the session:
+    tests read it, never change it (a test that must, copies it)."""
+    from tests.helpers.tiny_runs import make_small_scene
+
+    return make_small_scene(tmp_path_factory.mktemp("small") / "box")
+
+
+@pytest.fixture(scope="session")
 def abc_nef_scene_dir() -> Path:
     return shared_path("abc_nef/00000006")
 

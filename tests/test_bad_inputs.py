@@ -14,21 +14,17 @@ import pytest
 import torch
 
 from tests.helpers.bad_inputs import Case, assert_fails_cleanly, cases_as_params, edgedog
+from tests.helpers.tiny_runs import QUICK_TRAIN as TRAIN
 
-TRAIN = ["--preset", "preview", "--set", "epochs=2", "--set", "init_count=300", "--quiet"]
 SCENE: Path
 RUN: Path
 
 
 @pytest.fixture(scope="module", autouse=True)
-def scene_and_run(tmp_path_factory):
-    """A small box scene and a finished run of it, copied by the cases that change them."""
+def scene_and_run(small_box_scene, tmp_path_factory):
+    """The small box scene and a finished run of it, copied by the cases that change them."""
     global SCENE, RUN
-    root = tmp_path_factory.mktemp("bad-inputs")
-    SCENE, RUN = root / "box", root / "run"
-    made = edgedog("make-scene", "--shape", "box", "--out", SCENE, "--views", "12", "--size", "96",
-                   "--detector", "canny")
-    assert made.returncode == 0, made.stderr
+    SCENE, RUN = small_box_scene, tmp_path_factory.mktemp("bad-inputs") / "run"
     trained = edgedog("train", SCENE, "--out", RUN, *TRAIN)
     assert trained.returncode == 0, trained.stderr
 

@@ -2,7 +2,7 @@
 anything is written (issue 23: settings checked at parse time).
 
 Every case runs `python -m edgedog ...` in a fresh folder (tests/helpers/bad_inputs.py); SCENE in a case's
-command line stands for a tiny box scene made once for the module.
+command line stands for the session's small box scene (tests/conftest.py).
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 
 from edgedog.train.config import MAX_LAYERS
-from tests.helpers.bad_inputs import Case, assert_fails_cleanly, cases_as_params, edgedog
+from tests.helpers.bad_inputs import Case, assert_fails_cleanly, cases_as_params
 
 SCENE = "SCENE"
 """Stands for the module's tiny scene in a case's command line."""
@@ -100,28 +100,18 @@ CASES = [
 ]
 
 
-@pytest.fixture(scope="module")
-def tiny_scene(tmp_path_factory) -> Path:
-    """A 12-view, 96 px box scene with Canny maps."""
-    folder = tmp_path_factory.mktemp("scene") / "box"
-    made = edgedog("make-scene", "--shape", "box", "--out", folder, "--views", "12", "--size", "96",
-                   "--detector", "canny")
-    assert made.returncode == 0, made.stderr
-    return folder
-
-
 def _paths(folder: Path) -> set[Path]:
     return {path.relative_to(folder) for path in folder.rglob("*")}
 
 
 @pytest.mark.parametrize("case", cases_as_params(CASES))
-def test_a_bad_setting_fails_before_anything_is_written(case, tmp_path, tiny_scene):
+def test_a_bad_setting_fails_before_anything_is_written(case, tmp_path, small_box_scene):
     built = set()
 
     def build(folder: Path):
         argv, words = case.build(folder)
         built.update(_paths(folder))
-        return [tiny_scene if arg == SCENE else arg for arg in argv], words
+        return [small_box_scene if arg == SCENE else arg for arg in argv], words
 
     assert_fails_cleanly(Case(case.name, build, case.returncode), tmp_path)
     assert _paths(tmp_path) == built  # no file nor folder was made

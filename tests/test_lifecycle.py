@@ -41,19 +41,9 @@ def config(**changes):
 
 
 @pytest.fixture(scope="module")
-def scene_dir(tmp_path_factory) -> Path:
-    """A small box (12 views at 96 px, Canny maps)."""
-    root = tmp_path_factory.mktemp("scenes") / "box"
-    result = edgedog("make-scene", "--shape", "box", "--out", root, "--views", "12", "--size", "96",
-                     "--detector", "canny")
-    assert result.returncode == 0, result.stderr
-    return root
-
-
-@pytest.fixture(scope="module")
-def finished(scene_dir, tmp_path_factory) -> Path:
+def finished(small_box_scene, tmp_path_factory) -> Path:
     out = tmp_path_factory.mktemp("runs") / "finished"
-    execute(plan_run(out, scene_dir, "preview", config(), START), progress=False)
+    execute(plan_run(out, small_box_scene, "preview", config(), START), progress=False)
     return out
 
 
@@ -66,69 +56,70 @@ def _plain(value) -> bool:
     return value is None or isinstance(value, (str, int, float, bool, Path))
 
 
-def test_a_plan_writes_nothing_and_is_plain_data(scene_dir, tmp_path):
+def test_a_plan_writes_nothing_and_is_plain_data(small_box_scene, tmp_path):
     out = tmp_path / "run"
-    plan = plan_run(out, scene_dir, "preview", config(), START)
+    plan = plan_run(out, small_box_scene, "preview", config(), START)
     assert plan.state == NEW and plan.step == 0 and not out.exists()
-    assert plan.run.scene_fingerprint and plan.run.scene == load_scene(scene_dir).root
+    assert plan.run.scene_fingerprint and plan.run.scene == load_scene(small_box_scene).root
     assert _plain(plan) and pickle.loads(pickle.dumps(plan)) == plan
 
 
-def test_plans_of_a_finished_run(finished, scene_dir):
-    views = len(load_scene(scene_dir))
+def test_plans_of_a_finished_run(finished, small_box_scene):
+    views = len(load_scene(small_box_scene))
     assert is_finished(finished)
-    resumed = plan_run(finished, scene_dir, policy=CONTINUE)
+    resumed = plan_run(finished, small_box_scene, policy=CONTINUE)
     assert resumed.state == FINISHED and resumed.step == SETTINGS["epochs"] * views and resumed.extracted
     assert resumed.run == read_run(finished)
-    reused = plan_run(finished, scene_dir, "preview", config(), REUSE)
+    reused = plan_run(finished, small_box_scene, "preview", config(), REUSE)
     assert reused.state == FINISHED
-    again = plan_run(finished, scene_dir, "preview", config(), START)
+    again = plan_run(finished, small_box_scene, "preview", config(), START)
     assert again.state == REFUSED and "pass --resume" in again.reason
-    other = plan_run(finished, scene_dir, "preview", config(seed=7), REUSE)
+    other = plan_run(finished, small_box_scene, "preview", config(seed=7), REUSE)
     assert other.state == REFUSED and "another scene or configuration" in other.reason
     with pytest.raises(InputError, match="another scene or configuration"):
         execute(other)
 
 
-def test_refused_plans_say_why(scene_dir, tmp_path):
-    missing = plan_run(tmp_path / "nothing", scene_dir, policy=CONTINUE)
+def test_refused_plans_say_why(small_box_scene, tmp_path):
+    missing = plan_run(tmp_path / "nothing", small_box_scene, policy=CONTINUE)
     assert missing.state == REFUSED and "nothing to resume" in missing.reason
     (tmp_path / "theirs").mkdir()
     (tmp_path / "theirs" / "notes.txt").write_text("mine")
-    theirs = plan_run(tmp_path / "theirs", scene_dir, "preview", config(), REUSE)
+    theirs = plan_run(tmp_path / "theirs", small_box_scene, "preview", config(), REUSE)
     assert theirs.state == REFUSED and theirs.refused_path == tmp_path / "theirs"
     with pytest.raises(InputError, match="is not empty and is not an edgedog run folder"):
         theirs.check()
 
 
-def test_an_interrupted_run_resumes_from_its_checkpoint_step(scene_dir, finished, tmp_path):
+def test_an_interrupted_run_resumes_from_its_checkpoint_step(small_box_scene, finished, tmp_path):
     out = tmp_path / "run"
-    plan = plan_run(out, scene_dir, "preview", config(), REUSE)
+    plan = plan_run(out, small_box_scene, "preview", config(), REUSE)
     write_run(plan.run)
-    scene = load_scene(scene_dir, downscale=config().downscale)
+    scene = load_scene(small_box_scene, downscale=config().downscale)
     trainer = Trainer(scene, config(), out, progress=False)
     while trainer.epoch < 1:  # the end of the first epoch saves a checkpoint
         trainer.step()
-    resumed = plan_run(out, scene_dir, "preview", config(), REUSE)
+    resumed = plan_run(out, small_box_scene, "preview", config(), REUSE)
     assert resumed.state == RESUME and resumed.step == len(scene) and not resumed.extracted
     result = execute(resumed, progress=False)
     assert result.plan.state == RESUME and is_finished(out) and "counts" in result.report
     assert (out / "primitives.ply").read_bytes() == (finished / "primitives.ply").read_bytes()
 
 
-def test_finished_means_one_thing(scene_dir, tmp_path):
+def test_finished_means_one_thing(small_box_scene, tmp_path):
     """A log.json written mid-run (the speed bench's evaluations write one) is no finished run,
     for the benches, the demo, `train --resume`, layered runs and the studio alike."""
     out = tmp_path / "run"
-    run = RunFolder(out, load_scene(scene_dir).root, "preview", config())
+    run = RunFolder(out, load_scene(small_box_scene).root, "preview", config())
     write_run(run)
-    trainer = Trainer(load_scene(scene_dir, downscale=run.config.downscale), run.config, out, progress=False)
+    scene = load_scene(small_box_scene, downscale=run.config.downscale)
+    trainer = Trainer(scene, run.config, out, progress=False)
     while trainer.epoch < 1:
         trainer.step()
     trainer.write_outputs()
     assert (out / "log.json").is_file() and not is_finished(out)
-    assert plan_run(out, scene_dir, "preview", run.config, REUSE).state == RESUME
-    assert plan_run(out, scene_dir, policy=CONTINUE).state == RESUME
+    assert plan_run(out, small_box_scene, "preview", run.config, REUSE).state == RESUME
+    assert plan_run(out, small_box_scene, policy=CONTINUE).state == RESUME
     from edgedog.app import session
 
     assert session.is_finished is layered.is_finished is lifecycle.is_finished
@@ -138,13 +129,13 @@ def _primitives(out: Path) -> bytes:
     return (out / "primitives.ply").read_bytes()
 
 
-def test_a_run_does_not_depend_on_what_ran_before_it_in_the_process(scene_dir, tmp_path):
+def test_a_run_does_not_depend_on_what_ran_before_it_in_the_process(small_box_scene, tmp_path):
     """Two runs in one process, in either order and with the global generators disturbed, give
     the primitives of each run made alone in a fresh process."""
     fresh = {}
     for seed in (1, 2):
         fresh[seed] = tmp_path / f"fresh-{seed}"
-        result = edgedog("train", scene_dir, "--out", fresh[seed], "--preset", "preview", *CLI_SETTINGS,
+        result = edgedog("train", small_box_scene, "--out", fresh[seed], "--preset", "preview", *CLI_SETTINGS,
                          "--set", f"seed={seed}", "--quiet")
         assert result.returncode == 0, result.stderr
     for order in ((1, 2), (2, 1)):
@@ -153,6 +144,6 @@ def test_a_run_does_not_depend_on_what_ran_before_it_in_the_process(scene_dir, t
             np.random.seed(seed)
             torch.rand(17), np.random.rand(3)
             out = tmp_path / f"in-process-{order[0]}{order[1]}-{seed}"
-            execute(plan_run(out, scene_dir, "preview", config(seed=seed), START), progress=False)
+            execute(plan_run(out, small_box_scene, "preview", config(seed=seed), START), progress=False)
             assert _primitives(out) == _primitives(fresh[seed]), (order, seed)
     assert _primitives(fresh[1]) != _primitives(fresh[2])

@@ -21,19 +21,14 @@ from edgedog.files import atomic_write_json
 from edgedog.train.checkpoint import read_checkpoint
 from edgedog.train.run_folder import LOCK_FILE, RunLock, read_run
 from tests.helpers.bad_inputs import edgedog, snapshot
-
-TRAIN = ["--preset", "preview", "--set", "epochs=2", "--set", "init_count=300", "--quiet"]
+from tests.helpers.tiny_runs import QUICK_TRAIN as TRAIN
+from tests.helpers.tiny_runs import make_small_scene
 
 
 @pytest.fixture(scope="module")
-def tiny_scenes(tmp_path_factory) -> tuple[Path, Path]:
-    """Two small scenes (a box and a cylinder: 12 views at 96 px, Canny maps)."""
-    root = tmp_path_factory.mktemp("scenes")
-    for shape in ("box", "cylinder"):
-        result = edgedog("make-scene", "--shape", shape, "--out", root / shape, "--views", "12",
-                         "--size", "96", "--detector", "canny")
-        assert result.returncode == 0, result.stderr
-    return root / "box", root / "cylinder"
+def tiny_scenes(small_box_scene, tmp_path_factory) -> tuple[Path, Path]:
+    """Two small scenes: the session's box and a cylinder made alike."""
+    return small_box_scene, make_small_scene(tmp_path_factory.mktemp("scenes") / "cylinder", "cylinder")
 
 
 @pytest.fixture(scope="module")

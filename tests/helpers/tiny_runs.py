@@ -1,12 +1,27 @@
-"""Tiny training runs on the built-in box for tests: a few epochs at 1/4 resolution, uniform
-initialisation, no density-control events unless a test asks for them."""
+"""Tiny training runs for tests: a few epochs at 1/4 resolution on the built-in box (uniform
+initialisation, no density-control events unless a test asks for them), and small scenes made
+with the command line."""
 
 from __future__ import annotations
 
 import dataclasses
+from pathlib import Path
 
 from edgedog.scenes import load_scene
 from edgedog.train.config import TrainConfig, preset
+from tests.helpers.bad_inputs import edgedog
+
+QUICK_TRAIN = ["--preset", "preview", "--set", "epochs=2", "--set", "init_count=300", "--quiet"]
+"""`edgedog train` options of a run finished in seconds on a small scene."""
+
+
+def make_small_scene(folder: Path, shape: str = "box") -> Path:
+    """`edgedog make-scene` of `shape` into `folder`, as a user makes one: 12 views at 96 px
+    with Canny maps."""
+    made = edgedog("make-scene", "--shape", shape, "--out", folder, "--views", "12", "--size", "96",
+                   "--detector", "canny")
+    assert made.returncode == 0, made.stderr
+    return folder
 
 
 def tiny_config(**changes) -> TrainConfig:
