@@ -295,15 +295,6 @@ def write_ply(path: str | Path, curves: EdgeCurves) -> Path:
     return atomic_write(path, PlyData(elements).write)
 
 
-def write_point_columns(path: str | Path, columns: dict[str, np.ndarray]) -> Path:
-    """A vertex-only binary PLY with one float32 property per column (N,) (x, y, z first)."""
-    n = len(next(iter(columns.values())))
-    rows = np.empty(n, dtype=[(name, "f4") for name in columns])
-    for name, values in columns.items():
-        rows[name] = values
-    return atomic_write(path, PlyData([PlyElement.describe(rows, "vertex")]).write)
-
-
 def chain_edges(edges: np.ndarray, num_vertices: int) -> list[np.ndarray]:
     """Assemble edges (E, 2) of vertex indices into maximal chains (vertex index arrays).
 

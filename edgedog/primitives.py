@@ -37,6 +37,10 @@ class Parameter:
     activation: str
     meaning: str
 
+    def shape(self, n: int) -> tuple[int, ...]:
+        """The shape of `n` primitives' values: (n, components), or (n,) for one component."""
+        return (n, len(self.columns)) if len(self.columns) > 1 else (n,)
+
 
 SCHEMA = (
     Parameter("means", "means", ("x", "y", "z"), "identity", "(N, 3) world positions"),
@@ -120,9 +124,18 @@ def _rows(record, keep: np.ndarray):
     return type(record)(**{name: None if v is None else v[keep] for name, v in values.items()})
 
 
+def write_point_columns(path: str | Path, columns: dict[str, np.ndarray]) -> Path:
+    """A vertex-only binary PLY, atomically, with one float32 property per column (N,) (x, y, z
+    first): primitives.ply, points.ply, edge_points.ply."""
+    n = len(next(iter(columns.values())))
+    rows = np.empty(n, dtype=[(name, "f4") for name in columns])
+    for name, values in columns.items():
+        rows[name] = values
+    return atomic_write(path, PlyData([PlyElement.describe(rows, "vertex")]).write)
+
+
 def write_ply(path: str | Path, primitives: PrimitiveArrays) -> Path:
-    """primitives.ply, atomically: a vertex-only binary PLY with one float32 property per
-    column, the `SCHEMA` columns first, then `UNCERTAINTY` and `LAYER` when present."""
+    """primitives.ply: the `SCHEMA` columns first, then `UNCERTAINTY` and `LAYER` when present."""
     columns = {}
     for p in SCHEMA:
         values = getattr(primitives, p.activated).reshape(len(primitives), len(p.columns))
@@ -130,10 +143,7 @@ def write_ply(path: str | Path, primitives: PrimitiveArrays) -> Path:
     for name, values in ((UNCERTAINTY, primitives.uncertainty), (LAYER, primitives.layers)):
         if values is not None:
             columns[name] = values
-    rows = np.empty(len(primitives), dtype=[(name, "f4") for name in columns])
-    for name, values in columns.items():
-        rows[name] = values
-    return atomic_write(path, PlyData([PlyElement.describe(rows, "vertex")]).write)
+    return write_point_columns(path, columns)
 
 
 def read_ply(path: str | Path) -> PrimitiveArrays:

@@ -34,10 +34,10 @@ class Primitives:
 
     def __post_init__(self):
         n = self.means.shape[0]
-        expected = {p.raw: (n, len(p.columns)) if len(p.columns) > 1 else (n,) for p in SCHEMA}
-        for name, shape in expected.items():
-            if tuple(getattr(self, name).shape) != shape:
-                raise ValueError(f"{name} has shape {tuple(getattr(self, name).shape)}, expected {shape}")
+        for p in SCHEMA:
+            shape = tuple(getattr(self, p.raw).shape)
+            if shape != p.shape(n):
+                raise ValueError(f"{p.raw} has shape {shape}, expected {p.shape(n)}")
         if self.colors.dim() != 2 or self.colors.shape[0] != n or self.colors.shape[1] < 1:
             raise ValueError(f"colors has shape {tuple(self.colors.shape)}, expected ({n}, C >= 1)")
 

@@ -11,10 +11,17 @@ import torch
 from edgedog.renderer.config import RasterConfig
 from edgedog.renderer.primitives import Primitives, activate
 
-from edgedog.curve_files import write_point_columns
 from edgedog.curves.config import ExtractConfig
 from edgedog.curves.extract import extract_primitives, extract_run
-from edgedog.primitives import RAW, SCHEMA, EdgePrimitives, PrimitiveArrays, read_ply, write_ply
+from edgedog.primitives import (
+    RAW,
+    SCHEMA,
+    EdgePrimitives,
+    PrimitiveArrays,
+    read_ply,
+    write_ply,
+    write_point_columns,
+)
 from edgedog.train.model import GROUPS
 
 

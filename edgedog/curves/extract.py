@@ -9,12 +9,12 @@ from pathlib import Path
 
 import numpy as np
 
-from edgedog.curve_files import EdgeCurves, write_edges, write_point_columns
+from edgedog.curve_files import EdgeCurves, write_edges
 from edgedog.curves import filtering, fitting, grouping, junctions, topology
 from edgedog.curves.config import ExtractConfig
 from edgedog.errors import InputError
 from edgedog.files import read_json
-from edgedog.primitives import UNCERTAINTY, EdgePrimitives, read_ply
+from edgedog.primitives import UNCERTAINTY, EdgePrimitives, read_ply, write_point_columns
 from edgedog.scenes import Scene, load_scene
 
 OUTPUTS = ("curves.json", "curves.obj", "curves.ply", "edge_points.ply")

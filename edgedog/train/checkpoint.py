@@ -17,6 +17,7 @@ import torch
 
 from edgedog.errors import InputError
 from edgedog.files import atomic_write
+from edgedog.primitives import RAW, SCHEMA
 
 CHECKPOINT = "checkpoint.pt"
 FORMAT = "edgedog-checkpoint"
@@ -86,25 +87,21 @@ def read_checkpoint(path: Path) -> dict:
     return saved
 
 
-GROUP_WIDTHS = {"means": 3, "log_scales": 3, "quats": 4, "opacity_logits": None, "k_raw": 2}
-"""Each parameter group's shape after N: (N, width), or (N,) for None."""
-
-
 def model_arrays(saved: dict, key: str, path: Path, with_layers: bool = False) -> dict[str, np.ndarray]:
-    """`saved[key]`, a model's parameter groups (and, `with_layers`, each primitive's layer), as
-    numpy arrays after checking that they are one model: N rows each, the right widths, finite."""
+    """`saved[key]`, a model's parameter groups (`edgedog.primitives.RAW`; and, `with_layers`, each
+    primitive's layer) as numpy arrays after checking that they are one model: N rows each, the
+    schema's widths, finite."""
     value = saved[key]
-    names = (*GROUP_WIDTHS, "layers") if with_layers else tuple(GROUP_WIDTHS)
+    names = (*RAW, "layers") if with_layers else RAW
     if not isinstance(value, dict) or not all(isinstance(value.get(name), torch.Tensor) for name in names):
         raise InputError(path, f"malformed checkpoint: '{key}' must hold the tensors {', '.join(names)}")
     arrays = {name: value[name].numpy() for name in names}
     count = len(arrays["means"])
+    shapes = {p.raw: p.shape(count) for p in SCHEMA} | {"layers": (count,)}
     for name, array in arrays.items():
-        width = GROUP_WIDTHS.get(name)
-        shape = (count,) if width is None else (count, width)
-        if array.shape != shape:
+        if array.shape != shapes[name]:
             raise InputError(path, f"malformed checkpoint: '{key}.{name}' has shape {array.shape}, "
-                                   f"expected {shape}")
+                                   f"expected {shapes[name]}")
         if name != "layers" and (array.dtype != np.float32 or not np.isfinite(array).all()):
             raise InputError(path, f"malformed checkpoint: '{key}.{name}' must be finite float32")
     return arrays

@@ -6,8 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from edgedog.curve_files import write_point_columns
-from edgedog.primitives import write_ply
+from edgedog.primitives import write_ply, write_point_columns
 
 
 def write_points(path: Path, means: np.ndarray) -> None:

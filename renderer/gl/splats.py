@@ -20,6 +20,7 @@ from edgedog.renderer.footprint import NEAR_LOG_T, SERIES_LIMIT, support_u
 from edgedog.renderer.gl.programs import load_program
 from edgedog.renderer.primitives import RasterCamera, dog_shape
 
+from edgedog.primitives import SCHEMA
 from edgedog.scenes.camera import Camera
 
 TEXTURE_WIDTH = 1024
@@ -52,7 +53,7 @@ def splat_texels(splats: SplatSource, config: RasterConfig) -> tuple[np.ndarray,
         texels: (N, 4, 4) float32; drawable: (N,) bool, all inputs finite and u_s > 0.
     """
     n = len(splats.means)
-    fields = {"means": (n, 3), "scales": (n, 3), "quats": (n, 4), "opacity": (n,), "k_raw": (n, 2)}
+    fields = {p.activated: p.shape(n) for p in SCHEMA}
     arrays = {name: np.asarray(getattr(splats, name), np.float32) for name in fields}
     for name, shape in fields.items():
         if arrays[name].shape != shape:
