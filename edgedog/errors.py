@@ -9,27 +9,24 @@ class EdgeDogError(Exception):
     """Base of the errors the command line reports as a single line (no traceback)."""
 
 
-class InputError(EdgeDogError):
-    """A user's file is missing or malformed.
-
-    The message always names the file first: ``"<path>: <problem>"``.
-    """
+class PathError(EdgeDogError):
+    """An error about one file or folder; the message always names it first:
+    ``"<path>: <problem>"``."""
 
     def __init__(self, path: str | Path, problem: str):
         self.path = Path(path)
         self.problem = problem
         super().__init__(f"{self.path}: {problem}")
+
+
+class InputError(PathError):
+    """A user's file is missing or malformed."""
 
 
 class ConfigError(EdgeDogError):
     """An option or setting that cannot be used (unknown name, value out of range)."""
 
 
-class OutputError(EdgeDogError):
+class OutputError(PathError):
     """A file or folder we were asked to write cannot be written (permissions, a full disk, a
-    path that is a folder or whose parent is a file). The message names the path first."""
-
-    def __init__(self, path: str | Path, problem: str):
-        self.path = Path(path)
-        self.problem = problem
-        super().__init__(f"{self.path}: {problem}")
+    path that is a folder or whose parent is a file)."""
