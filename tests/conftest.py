@@ -49,7 +49,7 @@ def dtu_scene_dir() -> Path:
 @pytest.fixture(scope="session")
 def builtin_scene_dir(tmp_path_factory) -> Path:
     """The exact box scene (50 views at 400 px, "exact" edge maps): known answers for tests."""
-    from edgedog.builtin_scene import write_box_scene
+    from edgedog.builtin.scene import write_box_scene
 
     return write_box_scene(tmp_path_factory.mktemp("cache") / "box")
 

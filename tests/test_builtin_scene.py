@@ -7,14 +7,14 @@ import moderngl
 import numpy as np
 import pytest
 
-from edgedog import builtin_scene
-from edgedog.builtin.cameras import orbit_cameras
-from edgedog.builtin.exact import visible
-from edgedog.builtin.render import GLUnavailableError, Renderer
-from edgedog.builtin.shapes import SHAPES, make_part
+from edgedog.builtin import scene as builtin_scene
 from edgedog.cli import main
 from edgedog.scenes import load_scene
 from edgedog.scenes.camera import Camera, rigid_inverse
+from edgedog.synthetic.cameras import orbit_cameras
+from edgedog.synthetic.exact import visible
+from edgedog.synthetic.render import GLUnavailableError, Renderer
+from edgedog.synthetic.shapes import SHAPES, make_part
 
 
 def geometric_edges(render, camera) -> np.ndarray:

@@ -5,12 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from edgedog.builtin.features import Arc, Line, sample_curve
-from edgedog.builtin.shapes import SHAPES, make_part
-from edgedog.builtin.triangulate import signed_area, triangulate
 from edgedog.errors import ConfigError
 from edgedog.groundtruth import GT_SPACING
 from edgedog.metrics import sample_line
+from edgedog.synthetic.features import Arc, Line, sample_curve
+from edgedog.synthetic.shapes import SHAPES, make_part
+from edgedog.synthetic.triangulate import signed_area, triangulate
 
 
 @pytest.mark.parametrize("name", SHAPES)

@@ -36,7 +36,7 @@ CENTRE, RADIUS = np.array([80.3, 79.6]), 50.0
 
 @pytest.fixture(scope="module")
 def egl():
-    from edgedog.builtin.render import GLUnavailableError, create_context
+    from edgedog.synthetic.render import GLUnavailableError, create_context
 
     try:
         create_context().release()

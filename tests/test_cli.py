@@ -7,7 +7,7 @@ import json
 import numpy as np
 import pytest
 
-from edgedog.builtin_scene import CORNERS, EDGES
+from edgedog.builtin.scene import CORNERS, EDGES
 from tests.helpers.cli_runner import edgedog
 
 

@@ -8,7 +8,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from edgedog.builtin_scene import ground_truth_points, write_box_scene
+from edgedog.builtin.scene import ground_truth_points, write_box_scene
 from edgedog.errors import ConfigError, InputError
 from edgedog.init import InitialPoints, initialize, nearest_neighbour_scales, uniform_init
 from edgedog.init.triangulate import edge_support

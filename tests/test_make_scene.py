@@ -9,12 +9,12 @@ import cv2
 import numpy as np
 import pytest
 
-from edgedog.builtin.cameras import orbit_cameras
-from edgedog.builtin.degrade import DROPS_PER_VIEW
-from edgedog.builtin.shapes import make_part
 from edgedog.cli import main
 from edgedog.scenes import load_scene
 from edgedog.scenes.nerf import load_nerf
+from edgedog.synthetic.cameras import orbit_cameras
+from edgedog.synthetic.degrade import DROPS_PER_VIEW
+from edgedog.synthetic.shapes import make_part
 
 SIZE, VIEWS = 128, 6
 

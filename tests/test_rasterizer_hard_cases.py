@@ -16,7 +16,7 @@ from edgedog.renderer.config import ALPHA_MAX, ALPHA_MIN, EARLY_STOP_T, FRUSTUM_
 from edgedog.renderer.primitives import Primitives, RasterCamera, activate
 from edgedog.renderer.rasterize import fisher_information, fisher_reference, rasterize
 
-from edgedog.builtin_scene import orbit_cameras
+from edgedog.synthetic.cameras import orbit_cameras
 from tests.helpers.backends import each_device, on_device
 from tests.helpers.raster_builders import random_primitives
 

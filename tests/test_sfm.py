@@ -12,8 +12,8 @@ import pytest
 
 from edgedog.errors import EdgeDogError, InputError
 from edgedog.init import initialize
-from edgedog.init.sfm import align_similarity, run_sfm
 from edgedog.scenes import load_scene
+from edgedog.scenes.sfm import align_similarity, run_sfm
 from tests.helpers.paths import shared_path as shared
 
 DTU_VIEWS = list(range(10, 20))  # neighbouring views of the second row of the DTU rig

@@ -36,7 +36,7 @@ from edgedog.renderer.gl.context import GLUnavailableError, offscreen_context
 from edgedog.renderer.primitives import RasterCamera
 from edgedog.renderer.rasterize import rasterize
 
-from edgedog.builtin_scene import BOX_MAX, BOX_MIN, ground_truth_points, write_box_scene
+from edgedog.builtin.scene import BOX_MAX, BOX_MIN, ground_truth_points, write_box_scene
 from edgedog.curve_files import read_edges
 from edgedog.errors import InputError
 from edgedog.scenes import load_scene

@@ -14,7 +14,7 @@ from edgedog.app.layers import finest, selection, visible_subset
 from edgedog.app.script import press
 from edgedog.app.session import discard_empty_run
 
-from edgedog.builtin_scene import write_box_scene
+from edgedog.builtin.scene import write_box_scene
 from edgedog.train.config import preset
 from edgedog.train.run_folder import LOCK_FILE, RunFolder, write_run
 from edgedog.train.trainer import Snapshot

@@ -13,7 +13,7 @@ from pathlib import Path
 import cv2
 import pytest
 
-from edgedog.builtin_scene import write_box_scene
+from edgedog.builtin.scene import write_box_scene
 
 pytestmark = pytest.mark.xvfb
 

@@ -10,8 +10,9 @@ import cv2
 import numpy as np
 import torch
 
-from edgedog.builtin_scene import orbit_cameras, render_view
+from edgedog.builtin.scene import render_view
 from edgedog.edges.registry import PIDINET_VARIANTS, WEIGHT_FREE, make_detector, pidinet_available
+from edgedog.synthetic.cameras import orbit_cameras
 
 
 def bench_image(size: int) -> np.ndarray:

@@ -14,11 +14,12 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from edgedog.builtin_scene import CORNERS, EDGES, orbit_cameras
+from edgedog.builtin.scene import CORNERS, EDGES
 from edgedog.renderer.config import RasterConfig
 from edgedog.renderer.extension import load_extension
 from edgedog.renderer.primitives import Primitives, RasterCamera
 from edgedog.renderer.rasterize import RenderOutput, fisher_information, rasterize
+from edgedog.synthetic.cameras import orbit_cameras
 
 MAJOR_SCALE = 0.004  # 4 mm along the curve
 MINOR_SCALE = 0.0008  # 0.8 mm across: thin edge primitives

@@ -1,8 +1,5 @@
-"""Built-in scenes with exact ground truth: procedural CAD parts rendered offscreen in the
-ABC-NEF layout.
+"""Scene folders of synthetic parts in the ABC-NEF layout, and the built-in scenes.
 
-Modules, one job each: `features` (exact feature curves), `triangulate` (planar polygons with
-holes), `prism` (extruded profiles: mesh and sharp edges), `shapes` (the catalogue of parts),
-`cameras` (the ABC-NEF orbit), `render` (EGL/ModernGL renderer), `exact` (visibility and
-exact edge maps), `degrade` (robustness degradations), `writer` (the scene folder).
+`writer` writes any part's scene (renders, edge maps by a detector, ground truth); `scene` holds
+the default scene of `edgedog demo` and the exact box that tests and benchmarks use.
 """

@@ -28,11 +28,6 @@ import cv2
 import numpy as np
 from tqdm import tqdm
 
-from edgedog.builtin import degrade
-from edgedog.builtin.cameras import orbit_cameras
-from edgedog.builtin.exact import EXACT, exact_edge_map
-from edgedog.builtin.render import Render, Renderer
-from edgedog.builtin.shapes import Part
 from edgedog.curve_files import EdgeCurves, write_ply
 from edgedog.edges.registry import make_detector
 from edgedog.errors import InputError
@@ -40,6 +35,11 @@ from edgedog.files import create_folder
 from edgedog.groundtruth import GT_SPACING
 from edgedog.scenes.camera import OPENGL_TO_OPENCV, Camera
 from edgedog.scenes.images import as_rgb, to_u8, to_unit_float
+from edgedog.synthetic import degrade
+from edgedog.synthetic.cameras import orbit_cameras
+from edgedog.synthetic.exact import EXACT, exact_edge_map
+from edgedog.synthetic.render import Render, Renderer
+from edgedog.synthetic.shapes import Part
 
 VAL_VIEWS = 4
 VAL_PHASE = 1.0  # radians: the held-out spiral is turned away from the training one

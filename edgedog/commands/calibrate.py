@@ -94,8 +94,8 @@ def run(args: argparse.Namespace) -> None:
         raise ConfigError("--maps goes with --scene; with --detector the maps are computed on built-in parts")
     if args.views < 1:
         raise ConfigError(f"--views must be at least 1, got {args.views}")
-    from edgedog.builtin.shapes import make_part
     from edgedog.edges.registry import make_detector
+    from edgedog.synthetic.shapes import make_part
 
     for name in args.shapes:
         make_part(name)  # unknown names fail now, not after minutes of detection

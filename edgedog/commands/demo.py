@@ -7,7 +7,7 @@ import argparse
 import time
 from pathlib import Path
 
-from edgedog.builtin_scene import builtin_scene_path
+from edgedog.builtin.scene import builtin_scene_path
 from edgedog.commands.reports import print_report
 from edgedog.files import default_cache
 

@@ -16,7 +16,7 @@ MAX_SIZE = 4096
 
 
 def add_parser(subparsers) -> None:
-    from edgedog.builtin.shapes import SHAPES
+    from edgedog.synthetic.shapes import SHAPES
 
     parser = subparsers.add_parser(
         "make-scene", help="render a built-in CAD part with exact ground truth as a scene",
@@ -56,7 +56,7 @@ def add_parser(subparsers) -> None:
 
 def degradations_from(args: argparse.Namespace):
     """The degradations the options ask for; ConfigError for values out of range."""
-    from edgedog.builtin.degrade import Degradations
+    from edgedog.synthetic.degrade import Degradations
 
     if not 1 <= args.views <= MAX_VIEWS:
         raise ConfigError(f"--views {args.views}: must be between 1 and {MAX_VIEWS}")
@@ -78,9 +78,9 @@ def degradations_from(args: argparse.Namespace):
 
 
 def run(args: argparse.Namespace) -> None:
-    from edgedog.builtin.shapes import make_part
     from edgedog.builtin.writer import MANIFEST, write_scene
     from edgedog.files import read_json
+    from edgedog.synthetic.shapes import make_part
 
     degradations = degradations_from(args)
     start = time.perf_counter()

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from edgedog.init.sfm import MATCHERS, run_sfm
+from edgedog.scenes.sfm import MATCHERS, run_sfm
 
 
 def _positive(text: str) -> int:

@@ -55,7 +55,7 @@ def run(args: argparse.Namespace) -> int:
     init_glfw()  # no display: fail before loading (or generating) anything
     from edgedog.app.session import Session
     from edgedog.app.window import run_studio
-    from edgedog.builtin_scene import builtin_scene_path
+    from edgedog.builtin.scene import builtin_scene_path
 
     path = args.path if args.path is not None else builtin_scene_path(args.cache, progress=True)
     session = Session.open(path, args.runs, args.preset, args.overrides)

@@ -27,14 +27,14 @@ import numpy as np
 from scipy.spatial import cKDTree
 from tqdm import tqdm
 
-from edgedog.builtin.cameras import orbit_cameras
-from edgedog.builtin.shapes import Part, make_part
 from edgedog.curve_files import EdgeCurves
 from edgedog.edges.detector import EdgeDetector
 from edgedog.errors import ConfigError, InputError
 from edgedog.files import atomic_write_json, default_cache, read_json
 from edgedog.scenes import Scene
 from edgedog.scenes.camera import Camera
+from edgedog.synthetic.cameras import orbit_cameras
+from edgedog.synthetic.shapes import Part, make_part
 
 PROFILE_STEP = 0.25
 PROFILE_OFFSETS = np.arange(-24, 25) * PROFILE_STEP
@@ -459,9 +459,9 @@ def _render_and_detect(detector: EdgeDetector, part: Part, cameras: list[Camera]
                        progress: tqdm) -> tuple[list[np.ndarray], list[ProjectedCurves]]:
     """The detector's maps of `part` seen by `cameras` and each view's visible curve points,
     silhouettes marked from the render's background."""
-    from edgedog.builtin.exact import visible
-    from edgedog.builtin.render import Renderer  # imports moderngl
     from edgedog.scenes.images import as_rgb, to_unit_float
+    from edgedog.synthetic.exact import visible
+    from edgedog.synthetic.render import Renderer  # imports moderngl
 
     points = part.ground_truth()
     tangents = curve_tangents(points)

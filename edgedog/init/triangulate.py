@@ -10,8 +10,6 @@ from __future__ import annotations
 import os
 import shutil
 import time
-from collections.abc import Iterator
-from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -21,27 +19,13 @@ import numpy as np
 from edgedog.errors import InputError
 from edgedog.init.points import InitialPoints, nearest_neighbour_scales
 from edgedog.scenes.camera import Camera
+from edgedog.scenes.colmap import COLMAP_SUFFIXES, colmap_log_level
 from edgedog.scenes.images import read_raw
 from edgedog.scenes.scene import Scene
 
 # Files COLMAP reads directly when they are 8-bit grey or RGB; anything else is converted.
-COLMAP_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
-
 # Scale clip range of the triangulated points, as fractions of the bounds' largest extent.
 SCALE_RANGE = (0.0005, 0.02)
-
-
-@contextmanager
-def colmap_log_level(level: int = 1) -> Iterator[None]:
-    """Show only COLMAP log messages at `level` and above (0 info, 1 warning, 2 error) inside."""
-    import pycolmap
-
-    old = pycolmap.logging.minloglevel
-    pycolmap.logging.minloglevel = level
-    try:
-        yield
-    finally:
-        pycolmap.logging.minloglevel = old
 
 
 def edge_support(scene: Scene, points: np.ndarray, views: list[int], detector: str,

@@ -6,6 +6,8 @@ Only undistorted pinhole cameras are accepted: run `colmap image_undistorter` fi
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -23,6 +25,21 @@ from edgedog.scenes.common import (
 from edgedog.scenes.scene import Scene, View
 
 MODEL_FILES = ("cameras", "images", "points3D")
+COLMAP_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
+"""Image files COLMAP reads."""
+
+
+@contextmanager
+def colmap_log_level(level: int = 1) -> Iterator[None]:
+    """Show only COLMAP log messages at `level` and above (0 info, 1 warning, 2 error) inside."""
+    import pycolmap
+
+    old = pycolmap.logging.minloglevel
+    pycolmap.logging.minloglevel = level
+    try:
+        yield
+    finally:
+        pycolmap.logging.minloglevel = old
 
 
 def sparse_folder(root: Path) -> Path | None:

@@ -13,8 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from edgedog.builtin.features import Arc, Curve, Line
-from edgedog.builtin.triangulate import triangulate
+from edgedog.synthetic.features import Arc, Curve, Line
+from edgedog.synthetic.triangulate import triangulate
 
 ARC_STEP = np.radians(5.0)
 """Largest angle one wall facet spans on an arc (sagitta under 0.1% of the radius)."""

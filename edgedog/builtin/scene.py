@@ -14,19 +14,18 @@ from pathlib import Path
 
 import numpy as np
 
-from edgedog.builtin.cameras import orbit_cameras
-from edgedog.builtin.exact import EXACT, exact_edge_map
-from edgedog.builtin.prism import Prism, rectangle
-from edgedog.builtin.render import Renderer
-from edgedog.builtin.shapes import Part, assemble, make_part
 from edgedog.builtin.writer import write_scene
 from edgedog.edges.registry import DEFAULT_WEIGHT_FREE
 from edgedog.errors import InputError
 from edgedog.files import default_cache
 from edgedog.scenes.camera import Camera
+from edgedog.synthetic.exact import EXACT, exact_edge_map
+from edgedog.synthetic.prism import Prism, rectangle
+from edgedog.synthetic.render import Renderer
+from edgedog.synthetic.shapes import Part, assemble, make_part
 
 __all__ = ["BOX_MAX", "BOX_MIN", "CORNERS", "EDGES", "box_part", "builtin_scene_path", "ground_truth_points",
-           "orbit_cameras", "render_view", "write_box_scene"]
+           "render_view", "write_box_scene"]
 
 DEFAULT_SHAPE = "boss"
 DEFAULT_SEED = 0

@@ -13,8 +13,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from edgedog.builtin.features import Curve, sample_curves
-from edgedog.builtin.prism import (
+from edgedog.errors import ConfigError
+from edgedog.groundtruth import GT_SPACING
+from edgedog.synthetic.features import Curve, sample_curves
+from edgedog.synthetic.prism import (
     Mesh,
     Prism,
     circle,
@@ -22,8 +24,6 @@ from edgedog.builtin.prism import (
     rectangle,
     rounded_rectangle,
 )
-from edgedog.errors import ConfigError
-from edgedog.groundtruth import GT_SPACING
 
 # Turns a profile drawn in the xy plane and extruded along z into a side view standing on
 # the xy plane: a rotation of +90 degrees about x (y -> z, z -> -y).

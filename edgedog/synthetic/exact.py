@@ -11,9 +11,9 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from edgedog.builtin.features import Curve
-from edgedog.builtin.render import Render
 from edgedog.scenes.camera import Camera
+from edgedog.synthetic.features import Curve
+from edgedog.synthetic.render import Render
 
 EXACT = "exact"
 PLANE_TOLERANCE = 0.003

@@ -17,7 +17,7 @@ import numpy as np
 
 from edgedog.errors import InputError, OutputError
 from edgedog.files import create_folder
-from edgedog.init.triangulate import COLMAP_SUFFIXES, colmap_log_level
+from edgedog.scenes.colmap import COLMAP_SUFFIXES, colmap_log_level
 
 MATCHERS = ("exhaustive", "sequential")
 MIN_REGISTERED = 3
