@@ -12,7 +12,7 @@ from edgedog.app.state import COLOR_MODES, EXPORT_FORMATS, KERNELS, WEIGHTING_FO
 from edgedog.app.worker import FAILED, FINISHED, PAUSED, STOPPED
 from imgui_bundle import imgui
 
-from edgedog.train.config import MAX_LAYERS, PRESETS
+from edgedog.train.config import MAX_LAYERS, PRESETS, presets_help
 
 ERROR_COLOR = imgui.ImVec4(1.0, 0.4, 0.35, 1.0)
 PROGRESS_COLOR = imgui.ImVec4(0.22, 0.45, 0.75, 1.0)
@@ -100,11 +100,9 @@ def _restart(studio) -> None:
     restart = studio.state.restart
     if studio.session.resumable:
         imgui.text_disabled("Resume run continues the opened run as saved")
-    preset = widgets.combo("preset", restart.preset, PRESETS,
-                           "paper: 400 epochs at full resolution; fast: 200; preview: 100 at half. "
-                           f"{AT_RESTART}")
+    preset = widgets.combo("preset", restart.preset, tuple(PRESETS), f"{presets_help()}. {AT_RESTART}")
     if preset != restart.preset:
-        restart.preset, restart.epochs = preset, studio.session.base_config(preset).epochs
+        restart.preset, restart.epochs = preset, studio.session.base_config(preset).schedule.epochs
     restart.epochs = max(1, widgets.input_int(
         "epochs", restart.epochs,
         f"Epochs of the next run; the preset's schedule stretches with them. {AT_RESTART}",

@@ -17,6 +17,7 @@ from edgedog.curve_files import EdgeCurves, write_edges
 from edgedog.curves.config import ExtractConfig
 from edgedog.curves.extract import extract_primitives
 from edgedog.edges.cache import attach_edge_maps
+from edgedog.groundtruth import ground_truth_for
 from edgedog.metrics import evaluate
 from edgedog.primitives import EdgePrimitives
 from edgedog.scenes import Scene
@@ -60,8 +61,9 @@ def extract_snapshot(snapshot, elapsed: float, scene: Scene, detector: str, run_
     result = extract_primitives(EdgePrimitives.from_arrays(snapshot.primitives), config, scene, detector)
     fscore = None
     samples = result.curves.transformed(scene.world_to_gt).sample()
-    if scene.ground_truth is not None and len(samples):  # curves all shorter than 5 mm give none
-        fscore = evaluate(samples, scene.ground_truth.load()).fscore
+    ground_truth = ground_truth_for(scene.root) if len(samples) else None  # none from curves all under 5 mm
+    if ground_truth is not None:
+        fscore = evaluate(samples, ground_truth.load()).fscore
     written = tuple(write_edges(export_path(run_dir, snapshot.step, fmt, selection), result.curves)
                     for fmt in formats)
     return Extraction(snapshot.step, elapsed, result.curves, result.counts, fscore, written, selection)

@@ -92,10 +92,11 @@ class SavedRun:
         snapshot = stack_snapshot(read_stack(run.path), self.steps, len(history), loss)
         self.latest = Published(0, 1, snapshot, seconds)
         config = run.config
-        raster = RasterConfig(kernel=config.kernel, k_activation=config.k_activation)
+        raster = RasterConfig(kernel=config.model.kernel, k_activation=config.model.k_activation)
         self.info = RunInfo(log["detector"], raster,
-                            run.path, config.epochs, views, self.steps)
-        self.detectors = {config.layer: log["detector"]} if layered is None else layer_detectors(layered)
+                            run.path, config.schedule.epochs, views, self.steps)
+        self.detectors = ({config.layers.layer: log["detector"]} if layered is None
+                          else layer_detectors(layered))
         self.extraction = read_extraction(curves_folder(run.path, layered), snapshot.step, seconds)
 
     def series(self) -> np.ndarray:

@@ -25,8 +25,9 @@ from edgedog.app.worker import TrainingWorker
 from edgedog.curve_files import EdgeCurves
 from edgedog.curves.report import extract_with_report
 from edgedog.edges.cache import attach_edge_maps
+from edgedog.groundtruth import ground_truth_for
 from edgedog.scenes import Scene, load_scene
-from edgedog.train.config import TrainConfig, preset, with_overrides
+from edgedog.train.config import DEFAULT_PRESET, TrainConfig, preset, with_overrides
 from edgedog.train.layered import (
     LAYERS_FILE,
     LayeredRun,
@@ -116,7 +117,7 @@ class Session:
         ground_truth: (M, 3) ground-truth edge points in world coordinates, or None.
     """
 
-    def __init__(self, scene_path: Path, runs_root: Path, preset_name: str = "paper",
+    def __init__(self, scene_path: Path, runs_root: Path, preset_name: str = DEFAULT_PRESET,
                  overrides: Sequence[str] = (), resume: Run | None = None):
         self.scene_path, self.runs_root, self.overrides = Path(scene_path), Path(runs_root), list(overrides)
         self.resume = resume
@@ -128,15 +129,16 @@ class Session:
         self._ending: list[ActiveRun] = []
         self.runs = 0
         self._scenes: dict[int, Scene] = {}
-        scene = self.scene_at(self.config.downscale)  # a bad folder fails here, before any window
+        scene = self.scene_at(self.config.maps.downscale)  # a bad folder fails here, before any window
         self.saved = None if resume is None else self._saved(resume, scene)
         self.ground_truth = None
-        if scene.ground_truth is not None:
-            world = EdgeCurves(points=scene.ground_truth.load()).transformed(np.linalg.inv(scene.world_to_gt))
+        source = ground_truth_for(scene.root)
+        if source is not None:
+            world = EdgeCurves(points=source.load()).transformed(np.linalg.inv(scene.world_to_gt))
             self.ground_truth = world.points
 
     @classmethod
-    def open(cls, path: str | Path, runs_root: Path | None = None, preset_name: str = "paper",
+    def open(cls, path: str | Path, runs_root: Path | None = None, preset_name: str = DEFAULT_PRESET,
              overrides: Sequence[str] = ()) -> Session:
         """A scene folder, or a run folder (one with config.json, or a layered run's layers.json)
         to resume, or to show when finished; a layer's folder opens its layered run.
@@ -204,7 +206,7 @@ class Session:
     @property
     def scene(self) -> Scene:
         """The scene at the resolution of the current run (or of the configuration opened)."""
-        return self.scene_at(self.run_config.downscale)
+        return self.scene_at(self.run_config.maps.downscale)
 
     @property
     def resumable(self) -> bool:
@@ -240,12 +242,12 @@ class Session:
         if layers <= 1:
             return RunFolder(path, scene, preset_name, config)
         levels = resolve_levels([layer_name(i) for i in range(layers)])
-        check_level_maps(levels, self.scene_at(config.downscale).detectors)
+        check_level_maps(levels, self.scene_at(config.maps.downscale).detectors)
         return LayeredRun(path, scene, preset_name, config, levels)
 
     def _worker(self, run: Run) -> TrainingWorker:
         """The worker that trains `run` and then writes what `edgedog train` writes after training."""
-        scene = self.scene_at(run_config(run).downscale)
+        scene = self.scene_at(run_config(run).maps.downscale)
         if isinstance(run, LayeredRun):
             return TrainingWorker(lambda: layer_trainers(run, scene, progress=False), self.runs,
                                   finish=lambda _: extract_layered(run, scene),

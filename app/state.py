@@ -6,18 +6,18 @@ click and a scripted action take the same path.
 
 from __future__ import annotations
 
-import dataclasses
 import typing
 from dataclasses import dataclass, field
 from typing import Any
 
-from edgedog.train.config import TrainConfig, Weighting, with_epochs
+from edgedog.settings import with_values
+from edgedog.train.config import Kernel, TrainConfig, Weighting, with_epochs
 
 WEIGHTINGS: tuple[str, ...] = typing.get_args(Weighting)
 WEIGHTING_FORMULAS = {"one": "1", "exp_neg": "exp(-U)", "one_minus": "1 - U", "up": "U", "exp": "exp(U)"}
 """How the UI names each weighting w(U) of the pixel uncertainty U (the paper's Table 4)."""
 EXPORT_FORMATS = ("ply", "obj", "json")
-KERNELS = ("dog", "gaussian")
+KERNELS: tuple[str, ...] = typing.get_args(Kernel)
 COLOR_MODES = ("white", "opacity", "DoG a", "DoG t")
 """What the splats are coloured by: nothing, their opacity, or the inner scale a or the
 surround ratio t of their DoG shape k."""
@@ -46,17 +46,17 @@ class RestartSettings:
 
     @classmethod
     def from_config(cls, preset: str, config: TrainConfig) -> RestartSettings:
-        return cls(preset, config.epochs, tuple(config.k_init), config.kernel, config.pixel_uncertainty,
-                   config.primitive_uncertainty)
+        return cls(preset, config.schedule.epochs, tuple(config.init.k), config.model.kernel,
+                   config.loss.pixel_uncertainty, config.strategy.primitive_uncertainty)
 
     def apply(self, base: TrainConfig, live: LiveSettings) -> TrainConfig:
         """`base` (the preset with the command line's overrides) with these and the live settings."""
         # A new epoch count stretches the preset's whole schedule, not only its end.
-        return dataclasses.replace(with_epochs(base, self.epochs), k_init=tuple(self.k_init),
-                                   kernel=self.kernel,
-                                   pixel_uncertainty=self.pixel_uncertainty,
-                                   primitive_uncertainty=self.primitive_uncertainty,
-                                   keep_ratio=live.keep_ratio, weighting=live.weighting)
+        return with_values(with_epochs(base, self.epochs), {
+            "init.k": tuple(self.k_init), "model.kernel": self.kernel,
+            "loss.pixel_uncertainty": self.pixel_uncertainty, "loss.weighting": live.weighting,
+            "strategy.primitive_uncertainty": self.primitive_uncertainty,
+            "strategy.keep_ratio": live.keep_ratio})
 
 
 @dataclass
@@ -105,7 +105,7 @@ class UIState:
 
     @classmethod
     def for_config(cls, preset: str, config: TrainConfig) -> UIState:
-        live = LiveSettings(config.keep_ratio, config.weighting)
+        live = LiveSettings(config.strategy.keep_ratio, config.loss.weighting)
         return cls(live, RestartSettings.from_config(preset, config))
 
     def request(self, name: str, **args) -> None:

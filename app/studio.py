@@ -246,7 +246,7 @@ class Studio:
         snapshot = visible_subset(latest.snapshot, shown) if latest is not None and info is not None else None
         raster = None if info is None else info.raster
         view = min(self.state.view, len(scene) - 1)
-        pixel_uncertainty = self.session.run_config.pixel_uncertainty
+        pixel_uncertainty = self.session.run_config.loss.pixel_uncertainty
         if self.inspector_job.submit(key, lambda: inspect_view(snapshot, scene, view, detector, raster,
                                                                weighting, pixel_uncertainty)):
             self._inspected, self._last_inspect = key, now

@@ -79,7 +79,7 @@ class TrainingWorker:
     until done or stopped, then calls `finish(last trainer)`.
 
     A trainer needs `step() -> loss`, `done`, `snapshot(loss)`, `controls` (read/update),
-    `events`, `write_outputs()`, `detector`, `raster`, `out`, `config.epochs`, `cameras`,
+    `events`, `write_outputs()`, `detector`, `raster`, `out`, `config.schedule.epochs`, `cameras`,
     `step_index`, `epoch`. The generator builds the next trainer after the last one finished
     (a layered run's next layer starts from the layers below).
     """
@@ -182,9 +182,9 @@ class TrainingWorker:
     def _train_one(self, trainer: Trainer) -> bool:
         """Step `trainer` to its end and write its outputs; False when stopped first."""
         self._trainer = trainer
-        self.detectors[trainer.config.layer] = trainer.detector
-        self.info = RunInfo(trainer.detector, trainer.raster, Path(trainer.out), trainer.config.epochs,
-                            len(trainer.cameras), trainer.step_index)
+        self.detectors[trainer.config.layers.layer] = trainer.detector
+        self.info = RunInfo(trainer.detector, trainer.raster, Path(trainer.out),
+                            trainer.config.schedule.epochs, len(trainer.cameras), trainer.step_index)
         self._publish(trainer.snapshot(), [])
         losses: list[float] = []
         stepped = False

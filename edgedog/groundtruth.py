@@ -1,4 +1,5 @@
-"""Ground-truth 3D edge points of ABC objects, by the protocol published results use.
+"""Ground-truth 3D edge points of ABC objects, by the protocol published results use, and the
+providers that find them beside a scene (`ground_truth_for`).
 
 Two sources: the CAD model (mesh .obj + feature curves .yml + bbox stats .json), resampled
 here, or a pre-sampled point .ply (EMAP's `sampled_pts/<id>_0.005.ply`). Points are in the
@@ -7,7 +8,9 @@ ground-truth frame: the object normalised into [0, 1]^3, where 1 unit = 1000 "mm
 
 from __future__ import annotations
 
+import abc
 import functools
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -169,27 +172,86 @@ def _sharp_curves(curves, vertex_count: int, features: Path, obj: Path) -> list[
     return sharp
 
 
-def find_ground_truth(scene_root: Path, scan_id: str) -> GroundTruthSource | None:
-    """Look for an ABC object's ground truth next to a scene folder.
+class GroundTruthProvider(abc.ABC):
+    """Finds a scene's ground truth in one dataset layout, from the scene's folder and name alone
+    (scene loaders never look: commands ask `ground_truth_for` where they score).
 
-    Searched: `<scene>/gt`, `<scene>/groundtruth`, and `groundtruth/` one and two levels up
-    (the EMAP layout keeps `data/<id>/` beside `groundtruth/`). A pre-sampled
-    `<id>_0.005.ply` wins over the CAD files. Failing those, a single `*_0.005.ply` in
-    `<scene>/gt` (a generated scene keeps its ground truth when its folder is renamed).
+    Attributes:
+        layout: where it looks, for people (help texts, reports).
     """
-    candidates = [scene_root / "gt", scene_root / "groundtruth"]
-    candidates += [parent / "groundtruth" for parent in list(scene_root.parents)[:2]]
-    for folder in (c for c in candidates if c.is_dir()):
-        plys = sorted(folder.glob(f"**/{scan_id}_{GT_SPACING}.ply"))
-        if plys:
-            return GroundTruthSource(scan_id, sampled_ply=plys[0])
-        features = sorted(folder.glob(f"**/{scan_id}*features*.yml"))
-        objs = sorted(folder.glob(f"**/{scan_id}*.obj"))
-        stats = sorted(folder.glob("**/stats.json")) + sorted(folder.glob("**/*_stats.json"))
-        stats = [s for s in stats if f'"{scan_id}"' in s.read_text()]
-        if features and objs and stats:
-            return GroundTruthSource(scan_id, obj=objs[0], features=features[0], stats=stats[0])
-    own = sorted((scene_root / "gt").glob(f"*_{GT_SPACING}.ply"))
-    if len(own) == 1:
+
+    layout: str
+
+    @abc.abstractmethod
+    def find(self, scene_root: Path, scan_id: str) -> GroundTruthSource | None:
+        """The ground truth of object `scan_id` for the scene in `scene_root`, or None when this
+        layout has none. Raises InputError naming a file that is there but unreadable."""
+
+
+@dataclass(frozen=True)
+class AbcFolderProvider(GroundTruthProvider):
+    """ABC ground truth in `groundtruth` folders at fixed places around the scene: in each, a
+    pre-sampled `<id>_0.005.ply` wins over the CAD files (`<id>*.obj`, `<id>*features*.yml` and
+    a `stats.json` / `*_stats.json` that holds the id), searched at any depth.
+
+    Attributes:
+        folders: scene folder -> the folders to search, in order.
+    """
+
+    layout: str
+    folders: Callable[[Path], list[Path]]
+
+    def find(self, scene_root: Path, scan_id: str) -> GroundTruthSource | None:
+        for folder in (f for f in self.folders(scene_root) if f.is_dir()):
+            plys = sorted(folder.glob(f"**/{scan_id}_{GT_SPACING}.ply"))
+            if plys:
+                return GroundTruthSource(scan_id, sampled_ply=plys[0])
+            features = sorted(folder.glob(f"**/{scan_id}*features*.yml"))
+            objs = sorted(folder.glob(f"**/{scan_id}*.obj"))
+            stats = sorted(folder.glob("**/stats.json")) + sorted(folder.glob("**/*_stats.json"))
+            stats = [s for s in stats if _mentions(s, scan_id)] if features and objs else []
+            if stats:
+                return GroundTruthSource(scan_id, obj=objs[0], features=features[0], stats=stats[0])
+        return None
+
+
+@dataclass(frozen=True)
+class OwnSampledProvider(GroundTruthProvider):
+    """The single `*_0.005.ply` in the scene's own `gt/`, whatever its id: a generated scene keeps
+    its ground truth when its folder is renamed."""
+
+    layout: str = f"the one *_{GT_SPACING}.ply in <scene>/gt"
+
+    def find(self, scene_root: Path, scan_id: str) -> GroundTruthSource | None:
+        own = sorted((scene_root / "gt").glob(f"*_{GT_SPACING}.ply"))
+        if len(own) != 1:
+            return None
         return GroundTruthSource(own[0].name.removesuffix(f"_{GT_SPACING}.ply"), sampled_ply=own[0])
-    return None
+
+
+PROVIDERS: tuple[GroundTruthProvider, ...] = (
+    AbcFolderProvider("ABC-NEF: <scene>/gt or <scene>/groundtruth",
+                      lambda root: [root / "gt", root / "groundtruth"]),
+    # The EMAP layout keeps data/<id>/ beside groundtruth/.
+    AbcFolderProvider("EMAP: groundtruth/ one or two levels above the scene",
+                      lambda root: [parent / "groundtruth" for parent in list(root.parents)[:2]]),
+    OwnSampledProvider(),
+)
+"""Asked in this order; the first that finds ground truth wins."""
+
+
+def ground_truth_for(scene_root: Path, scan_id: str | None = None) -> GroundTruthSource | None:
+    """The ground truth of the scene in `scene_root` (object `scan_id`, by default the folder's
+    name) that the first of `PROVIDERS` finds, or None. Nothing is loaded (see
+    `GroundTruthSource.load`). Raises InputError naming a ground-truth file that cannot be read."""
+    scan_id = scene_root.name if scan_id is None else scan_id
+    return next((source for provider in PROVIDERS
+                 if (source := provider.find(scene_root, scan_id)) is not None), None)
+
+
+def _mentions(stats: Path, scan_id: str) -> bool:
+    """Whether a bbox statistics file holds object `scan_id`."""
+    try:
+        return f'"{scan_id}"' in stats.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as error:
+        raise InputError(stats, f"not a readable bbox statistics file ({type(error).__name__})") from None

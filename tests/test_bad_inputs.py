@@ -196,9 +196,12 @@ def config_json_text(content: str | bytes):
     return build
 
 
-def set_config(key, value):
+def set_config(path, value):
+    """An edit of a run file's 'config' setting `path` ('schedule.epochs')."""
+    section, key = path.split(".")
+
     def edit(data):
-        data["config"][key] = value
+        data["config"][section][key] = value
     return edit
 
 
@@ -218,13 +221,13 @@ CASES = [
     Case("checkpoint-a-folder", with_checkpoint(lambda p: (p.unlink(), p.mkdir()))),
     # config.json and log.json of a run
     Case("config-json-config-is-5", with_run_json("config.json", lambda d: d.update(config=5))),
-    Case("config-json-epochs-two", with_run_json("config.json", set_config("epochs", "two"))),
-    Case("config-json-epochs-list", with_run_json("config.json", set_config("epochs", [1, 2]))),
+    Case("config-json-epochs-two", with_run_json("config.json", set_config("schedule.epochs", "two"))),
+    Case("config-json-epochs-list", with_run_json("config.json", set_config("schedule.epochs", [1, 2]))),
     Case("config-json-newer-format", with_run_json("config.json", lambda d: d.update(version=99))),
     Case("config-json-scene-number", with_run_json("config.json", lambda d: d.update(scene=5))),
     Case("config-json-not-json", config_json_text("{")),
     Case("config-json-not-utf8", config_json_text(b"\xff\xfe{}")),
-    Case("log-json-downscale-two", with_run_json("log.json", set_config("downscale", "two"), extract)),
+    Case("log-json-downscale-two", with_run_json("log.json", set_config("maps.downscale", "two"), extract)),
     Case("log-json-scene-missing", with_run_json("log.json", lambda d: d.pop("scene"), extract)),
     # point 2: never into a folder that is not ours
     Case("out-folder-with-config-json", into_folder_with("config.json")),

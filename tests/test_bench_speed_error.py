@@ -42,13 +42,13 @@ def bench(builtin_scene_dir, tmp_path_factory):
 
 def test_budgets_and_evaluation_epochs():
     assert [b.name for b in parse_budgets("preview-d4, fast,preview-d4")] == ["preview-d4", "fast"]
-    epochs = [b.config([]).epochs for b in parse_budgets("preview,preview-50,fast,paper")]
+    epochs = [b.config([]).schedule.epochs for b in parse_budgets("preview,preview-50,fast,full")]
     assert epochs == [100, 50, 200, 400]
     d4 = parse_budgets("preview-d4")[0].config(["downscale=8", "epochs=30"])
-    assert (d4.downscale, d4.epochs) == (4, 30)  # the budget's own change wins over --set
-    assert parse_budgets("preview-50")[0].config(["epochs=30"]).epochs == 15
-    full = parse_budgets("preview-d1")[0].config(["downscale=2"])
-    assert full.downscale == 1 and full.epochs == 100
+    assert (d4.maps.downscale, d4.schedule.epochs) == (4, 30)  # the budget's own change wins over --set
+    assert parse_budgets("preview-50")[0].config(["epochs=30"]).schedule.epochs == 15
+    whole = parse_budgets("preview-d1")[0].config(["downscale=2"])
+    assert whole.maps.downscale == 1 and whole.schedule.epochs == 100
     assert evaluation_epochs(100, 5) == [20, 40, 60, 80, 100]
     assert evaluation_epochs(3, 5) == [1, 2, 3]
 

@@ -9,6 +9,7 @@ import pytest
 
 from edgedog.builtin import scene as builtin_scene
 from edgedog.cli import main
+from edgedog.groundtruth import ground_truth_for
 from edgedog.scenes import load_scene
 from edgedog.scenes.camera import Camera, rigid_inverse
 from edgedog.synthetic.cameras import orbit_cameras
@@ -77,7 +78,7 @@ def test_hidden_points_are_not_visible():
 def test_the_exact_box_scene_loads_as_an_abc_nef_scene(builtin_scene_dir):
     scene = load_scene(builtin_scene_dir)
     assert scene.format == "nerf" and len(scene) == 50 and scene.detectors == ["exact"]
-    points = scene.ground_truth.load()
+    points = ground_truth_for(scene.root).load()
     # 12 box edges, perimeter 4 * (0.6 + 0.4 + 0.3) = 5.2 units sampled every ~5 mm.
     assert 1000 <= len(points) <= 1040 and points.min() >= 0 and points.max() <= 1
     np.testing.assert_allclose(points, builtin_scene.ground_truth_points())
@@ -117,7 +118,7 @@ def test_the_default_scene_is_generated_once_in_the_cache(tmp_path, monkeypatch)
     assert folder == tmp_path / "scenes" / "boss-canny"
     assert sorted(p.name for p in folder.parent.iterdir()) == ["boss", "boss-canny"]  # no partial folder
     scene = load_scene(folder)
-    assert len(scene) == 3 and scene.detectors == ["canny"] and scene.ground_truth is not None
+    assert len(scene) == 3 and scene.detectors == ["canny"] and ground_truth_for(scene.root) is not None
     stamp = (folder / "transforms_train.json").stat().st_mtime_ns
     assert builtin_scene.builtin_scene_path(tmp_path) == folder
     assert (folder / "transforms_train.json").stat().st_mtime_ns == stamp

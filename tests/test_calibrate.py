@@ -209,7 +209,7 @@ def test_cli_calibrates_saves_the_record_and_prints_a_summary(egl, cache, tmp_pa
     assert main(["calibrate-detector", "--detector", "canny", "--shapes", "box", "--views", "3",
                  "--sizes", "200", "--json", str(out)]) == 0
     printed = capsys.readouterr().out.splitlines()
-    assert printed[0].startswith("canny (canny-50-150-s1) on box, 3 views at 200 px")
+    assert printed[0].startswith("canny (canny-50-150-b1-s1) on box, 3 views at 200 px")
     assert any(line.startswith("offset        dx ") for line in printed)
     assert any(line.startswith("silhouettes   peak ") for line in printed)
     record = DetectorCalibration.from_dict(json.loads(printed[-1]))

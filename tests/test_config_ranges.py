@@ -4,23 +4,24 @@ can tell without the scene."""
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import math
 import typing
+from dataclasses import dataclass, field
+from typing import Annotated
 
 import pytest
 
 from edgedog.curves.config import ExtractConfig
 from edgedog.edges.registry import is_detector_name, make_detector, require_detector
 from edgedog.errors import ConfigError, InputError
+from edgedog.settings import Check, Range, Settings, setting_paths, setting_types
+from edgedog.settings import with_overrides as settings_with_overrides
 from edgedog.train.config import (
     MAX_EPOCHS,
     MAX_LAYERS,
     PRESETS,
-    Check,
-    OneOf,
-    Range,
+    RENAMED,
     TrainConfig,
     from_dict,
     preset,
@@ -29,9 +30,17 @@ from edgedog.train.config import (
     with_overrides,
 )
 from edgedog.train.levels import check_level_maps, parse_level, resolve_levels
+from tests.helpers.old_runs import flat_config
 
-KINDS = typing.get_type_hints(TrainConfig, include_extras=True)
-FIELDS = [f.name for f in dataclasses.fields(TrainConfig)]
+KINDS = setting_paths(TrainConfig)
+PATHS = list(KINDS)
+"""Every setting by dotted name: 'schedule.epochs'."""
+
+
+def with_setting(path: str, value):
+    """The section of setting `path` made with `value` (checked there); returns the value kept."""
+    section, name = path.split(".")
+    return getattr(setting_types(TrainConfig)[section](**{name: value}), name)
 
 
 def _parts(kind) -> tuple:
@@ -77,8 +86,7 @@ def bad_values(kind) -> list:
         return wrong + ["true", 1, 0.0]
     if base is str:
         checked = [""] if any(isinstance(r, Check) for r in rules) else []
-        chosen = ["bogus"] if any(isinstance(r, OneOf) for r in rules) else []
-        return wrong + [1, ["auto"]] + checked + chosen
+        return wrong + [1, ["auto"]] + checked
     numbers = [v for rule in rules if isinstance(rule, Range) for v in _outside(rule, base)]
     if base is int:
         return wrong + numbers + [1.5, "1", True, [1]]
@@ -87,75 +95,116 @@ def bad_values(kind) -> list:
 
 # --- every field
 def test_every_setting_declares_what_it_accepts():
-    """A number has a Range, a string a Literal, OneOf or Check: a new field cannot go unchecked."""
-    for name in FIELDS:
+    """A number has a Range, a string a Literal or Check: a new field cannot go unchecked."""
+    for name in PATHS:
         base, rules, _ = _parts(KINDS[name])
         if typing.get_origin(base) is tuple:
             base, rules, _ = _parts(typing.get_args(base)[0])
         if base in (int, float):
             assert any(isinstance(rule, Range) for rule in rules), name
         elif base is str:
-            assert any(isinstance(rule, (OneOf, Check)) for rule in rules), name
+            assert any(isinstance(rule, Check) for rule in rules), name
         else:
             assert base is bool or typing.get_origin(base) is typing.Literal, name
 
 
-@pytest.mark.parametrize("name", FIELDS)
-def test_every_setting_refuses_bad_values(name):
-    values = bad_values(KINDS[name])
+@pytest.mark.parametrize("path", PATHS)
+def test_every_setting_refuses_bad_values(path):
+    values = bad_values(KINDS[path])
     assert values
     for value in values:
-        with pytest.raises(ConfigError, match=name):
-            TrainConfig(**{name: value})
+        with pytest.raises(ConfigError, match=path.split(".")[1]):
+            with_setting(path, value)
 
 
-@pytest.mark.parametrize("name", FIELDS)
-def test_every_setting_takes_its_closed_bounds(name):
-    base, rules, optional = _parts(KINDS[name])
+@pytest.mark.parametrize("path", PATHS)
+def test_every_setting_takes_its_closed_bounds(path):
+    base, rules, optional = _parts(KINDS[path])
     for rule in (r for r in rules if isinstance(r, Range)):
         for bound, is_open in ((rule.low, rule.open_low), (rule.high, rule.open_high)):
             if bound is not None and not is_open:
-                assert getattr(TrainConfig(**{name: base(bound)}), name) == bound
+                assert with_setting(path, base(bound)) == bound
     if optional:
-        assert getattr(TrainConfig(**{name: None}), name) is None
+        assert with_setting(path, None) is None
 
 
 def test_values_are_stored_as_their_type():
     """A JSON 1 for a float setting, a list for a tuple: stored as float and tuple (hashable,
     equal to the preset's)."""
-    config = TrainConfig(lr_means=1, k_init=[0, 1], duplicate_epochs=[5, 10])
-    assert type(config.lr_means) is float and type(config.k_init[0]) is float and hash(config)
-    assert config.k_init == (0.0, 1.0) and config.duplicate_epochs == (5, 10)
+    config = from_dict({"schedule": {"lr_means": 1}, "init": {"k": [0, 1]},
+                        "strategy": {"duplicate_epochs": [5, 10]}})
+    assert type(config.schedule.lr_means) is float and type(config.init.k[0]) is float and hash(config)
+    assert config.init.k == (0.0, 1.0) and config.strategy.duplicate_epochs == (5, 10)
+
+
+def test_every_setting_has_one_name():
+    """Every old flat name leads to a setting; the one bare name two sections share is an old
+    flat name, which keeps its meaning (maps.edge_threshold)."""
+    assert set(RENAMED.values()) <= set(PATHS)
+    bare = [path.split(".")[1] for path in PATHS]
+    assert {name for name in bare if bare.count(name) > 1} == {"edge_threshold"}
+    assert with_overrides(TrainConfig(), ["edge_threshold=0.4"]).maps.edge_threshold == 0.4
+    assert with_overrides(TrainConfig(), ["init.edge_threshold=0.4"]).init.edge_threshold == 0.4
+
+
+@dataclass(frozen=True)
+class _Small(Settings):
+    size: Annotated[int, Range(1)] = 1
+
+
+@dataclass(frozen=True)
+class _Large(Settings):
+    size: Annotated[int, Range(1)] = 2
+    shown: bool = True
+
+
+@dataclass(frozen=True)
+class _Sections(Settings):
+    small: _Small = field(default_factory=_Small)
+    large: _Large = field(default_factory=_Large)
+
+
+def test_a_bare_name_stands_for_the_one_section_that_has_it():
+    assert settings_with_overrides(_Sections(), ["shown=off"]).large.shown is False
+    assert settings_with_overrides(_Sections(), ["large.size=3"]) == _Sections(large=_Large(size=3))
+    with pytest.raises(ConfigError, match=r"--set 'size=3': setting 'size' is in several sections; name one "
+                                          r"of small.size, large.size"):
+        settings_with_overrides(_Sections(), ["size=3"])
+    with pytest.raises(ConfigError, match=r"unknown setting 'sise' \(did you mean size\?\)"):
+        settings_with_overrides(_Sections(), ["sise=3"])
+    with pytest.raises(ConfigError, match=r"large.size must be an integer >= 1, got 0"):
+        settings_with_overrides(_Sections(), ["large.size=0"])
 
 
 # --- the problems of issue 23, as messages
 @pytest.mark.parametrize("assignment, words", [
-    ("checkpoint_every=0", "checkpoint_every must be an integer >= 1, got 0"),
+    ("checkpoint_every=0", "run.checkpoint_every must be an integer >= 1, got 0"),
     ("fisher_every=0", "fisher_every must be an integer >= 1"),
     ("orientation_every=0", "orientation_every must be"),
     ("snapshot_every=0", "snapshot_every must be"),
-    ("sampled_loss_every=0", "sampled_loss_every must be"),
-    ("epochs=0", f"epochs must be an integer in [1, {MAX_EPOCHS}], got 0"),
-    ("init_opacity=1.5", "init_opacity must be a number in (0, 1), got 1.5"),
-    ("init_count=-1", "init_count must be an integer in [1, "),
-    ("init_count=0", "init_count must be"),
-    ("init_side=0", "init_side must be a number > 0, or none, got 0.0"),
+    ("sampled_loss_every=0", "loss.sampled_every must be"),
+    ("epochs=0", f"schedule.epochs must be an integer in [1, {MAX_EPOCHS}], got 0"),
+    ("init_opacity=1.5", "init.opacity must be a number in (0, 1), got 1.5"),
+    ("init_count=-1", "init.count must be an integer in [1, "),
+    ("init.count=0", "init.count must be"),
+    ("init_side=0", "init.side must be a number > 0, or none, got 0.0"),
     ("seed=-1", "seed must be an integer in [0, "),
-    ("k_init=0.5", "k_init must be 2 values, each a number in [-20, 20], got (0.5,)"),
+    ("k_init=0.5", "init.k must be 2 values, each a number in [-20, 20], got (0.5,)"),
     ("max_primitives=0", "max_primitives must be"),
-    ("edge_threshold=nan", "edge_threshold must be a number in (0, 1], got nan"),
-    ("lr_means=inf", "lr_means must be a number in [0, 1], got inf"),
+    ("edge_threshold=nan", "maps.edge_threshold must be a number in (0, 1], got nan"),
+    ("lr_means=inf", "schedule.lr_means must be a number in [0, 1], got inf"),
     ("profile_sigma=1e9", "profile_sigma must be a number in (0, 32]"),
     ("duplicate_copies=0", "duplicate_copies must be an integer in [1, 8]"),
     ("direction_neighbours=100000", "direction_neighbours must be an integer in [2, 32]"),
     ("epochs=two", "epochs must be an integer in [1, 10000], got 'two'"),
     ("pixel_uncertainty=maybe", "pixel_uncertainty must be true or false, got 'maybe'"),
-    ("kernel=box", "kernel must be one of dog, gaussian, got 'box'"),
-    ("init_method=random", "init_method must be one of auto, triangulate, sfm-points, uniform"),
+    ("model.kernel=box", "model.kernel must be one of dog, gaussian, got 'box'"),
+    ("init_method=random", "init.method must be one of auto, triangulate, sfm-points, uniform"),
     ("duplicate_epochs=10,-1", "duplicate_epochs must be a list, each an integer in [0, 10000]"),
     ("detector=canny:5", "detector 'canny:5': expected canny:LOW,HIGH"),
-    ("detector=", "detector must name a detector or a scene's maps"),
+    ("maps.detector=", "maps.detector must name a detector or a scene's maps"),
     ("epoch=3", "unknown setting 'epoch' (did you mean epochs?)"),
+    ("loss.weight=exp", "unknown setting 'loss.weight' (did you mean loss.weighting?)"),
     ("epochs", "expected KEY=VALUE"),
 ])
 def test_a_bad_override_names_the_assignment_and_the_range(assignment, words):
@@ -165,18 +214,19 @@ def test_a_bad_override_names_the_assignment_and_the_range(assignment, words):
 
 
 def test_overrides_read_values_by_type():
-    config = with_overrides(TrainConfig(), ["init_side=none", "duplicate_epochs=", "pixel_uncertainty=off",
-                                            "k_init=1,-2", "direction_factor=0.5", "seed=7"])
-    assert config.init_side is None and config.duplicate_epochs == () and not config.pixel_uncertainty
-    assert config.k_init == (1.0, -2.0) and config.direction_factor == 0.5 and config.seed == 7
-    assert with_overrides(TrainConfig(), ["direction_factor=none"]).direction_factor is None
+    config = with_overrides(TrainConfig(), ["init.side=none", "duplicate_epochs=", "pixel_uncertainty=off",
+                                            "init.k=1,-2", "direction_factor=0.5", "run.seed=7"])
+    assert config.init.side is None and config.strategy.duplicate_epochs == ()
+    assert not config.loss.pixel_uncertainty and config.init.k == (1.0, -2.0)
+    assert config.loss.direction_factor == 0.5 and config.run.seed == 7
+    assert with_overrides(TrainConfig(), ["direction_factor=none"]).loss.direction_factor is None
 
 
 def test_other_settings_classes_get_the_same_parsing():
     """with_overrides reads `edgedog extract --set` too: NaN is refused there as well."""
-    assert with_overrides(ExtractConfig(), ["min_opacity=0.3"]).min_opacity == 0.3
+    assert settings_with_overrides(ExtractConfig(), ["min_opacity=0.3"]).min_opacity == 0.3
     with pytest.raises(ConfigError, match=r"--set 'min_opacity=nan': min_opacity must be a number, got nan"):
-        with_overrides(ExtractConfig(), ["min_opacity=nan"])
+        settings_with_overrides(ExtractConfig(), ["min_opacity=nan"])
 
 
 # --- presets and schedules
@@ -189,20 +239,32 @@ def test_presets_pass_and_survive_their_json(name):
 def test_stretched_schedules_stay_in_range():
     for name in PRESETS:
         for epochs in (1, 3, MAX_EPOCHS):
-            assert with_epochs(preset(name), epochs).epochs == epochs
+            assert with_epochs(preset(name), epochs).schedule.epochs == epochs
     with pytest.raises(ConfigError, match="epochs must be an integer in"):
-        with_epochs(preset("paper"), MAX_EPOCHS + 1)
+        with_epochs(preset("full"), MAX_EPOCHS + 1)
     with pytest.raises(ConfigError, match="epochs must be"):
-        with_epochs(preset("paper"), 0)
+        with_epochs(preset("full"), 0)
 
 
 # --- config.json
 def test_a_config_json_of_an_older_version_reads_with_defaults():
     """Settings added since a run was written are absent from its config.json: defaults apply."""
-    old = {"epochs": 30, "kernel": "gaussian", "k_init": [0.5, 0.5]}
-    config = from_dict(old)
-    assert (config.epochs, config.kernel, config.k_init) == (30, "gaussian", (0.5, 0.5))
-    assert config.max_primitives == TrainConfig().max_primitives
+    config = from_dict({"schedule": {"epochs": 30}, "model": {"kernel": "gaussian"}})
+    assert (config.schedule.epochs, config.model.kernel) == (30, "gaussian")
+    assert config.strategy == TrainConfig().strategy and config.init == TrainConfig().init
+
+
+def test_a_flat_config_of_format_2_migrates_to_the_same_config():
+    """A run folder written before the sections holds flat names, the renamed ones among them."""
+    old = {"epochs": 30, "kernel": "gaussian", "k_init": [0.5, 0.5], "init_count": 2500, "map_floor": 0.2,
+           "edge_threshold": 0.4, "sampled_loss_every": 3, "keep_ratio": 0.8, "layer": 1}
+    expected = with_overrides(TrainConfig(), ["schedule.epochs=30", "model.kernel=gaussian", "init.k=0.5,0.5",
+                                              "init.count=2500", "maps.floor=0.2", "maps.edge_threshold=0.4",
+                                              "loss.sampled_every=3", "strategy.keep_ratio=0.8",
+                                              "layers.layer=1"])
+    assert from_dict(old) == expected
+    assert from_dict(to_dict(expected)) == expected
+    assert from_dict(flat_config(to_dict(TrainConfig()))) == TrainConfig()
 
 
 @pytest.mark.parametrize("values, words", [
@@ -212,13 +274,18 @@ def test_a_config_json_of_an_older_version_reads_with_defaults():
     ({"epochs": 2.0}, "epochs must be an integer"),
     ({"lr_means": "0.001"}, "lr_means must be a number"),
     ({"lr_means": {"value": 1}}, "lr_means must be a number"),
-    ({"k_init": [0.0]}, "k_init must be 2 values"),
-    ({"k_init": "0,0"}, "k_init must be 2 values"),
+    ({"k_init": [0.0]}, "init.k must be 2 values"),
+    ({"init": {"k": "0,0"}}, "init.k must be 2 values"),
     ({"cull_opacity_epochs": [125, "310"]}, "cull_opacity_epochs must be a list"),
     ({"pixel_uncertainty": "yes"}, "pixel_uncertainty must be true or false"),
     ({"weighting": "Exp"}, "weighting must be one of one, exp_neg, one_minus, up, exp"),
     ({"profile_sigma": 1e9}, "profile_sigma must be a number in (0, 32]"),
-    ({"epochs": 5, "learning_rate": 1, "colour": 2}, "unknown settings colour, learning_rate"),
+    ({"schedule": {"epochs": 5, "learning_rate": 1, "colour": 2}},
+     "unknown settings schedule.colour, schedule.learning_rate"),
+    ({"schedule": {"epochs": 0}}, "schedule.epochs must be an integer in [1, 10000], got 0"),
+    ({"schedule": 3}, "schedule: expected an object of settings, got 3"),
+    ({"maps": {}, "colour": {}}, "unknown setting colour"),
+    ({"epochs": 5, "colour": 2}, "unknown setting 'colour'"),
     ([1, 2], "expected an object of settings"),
 ])
 def test_a_bad_config_json_is_a_config_error(values, words):
@@ -248,8 +315,8 @@ def test_a_detector_name_with_bad_options_is_refused_without_the_scene(name, wor
 
 
 @pytest.mark.parametrize("names, specs, words", [
-    (["L0", "L1"], ["L1=canny@2"], "--level 'L1=canny@2': map_floor must be a number in [0, 1), got 2.0"),
-    (["L0", "L1"], ["L1=canny@nan"], "map_floor must be"),
+    (["L0", "L1"], ["L1=canny@2"], "--level 'L1=canny@2': maps.floor must be a number in [0, 1), got 2.0"),
+    (["L0", "L1"], ["L1=canny@nan"], "maps.floor must be"),
     (["L0", "L1"], ["L1=canny:5"], "--level 'L1=canny:5': detector 'canny:5'"),
     (["L0", "L1"], ["L1=pidinet:fused2"], "pidinet takes"),
     (["L0", "L1"], [f"L{MAX_LAYERS}=canny"], f"layer must be an integer in [0, {MAX_LAYERS - 1}]"),

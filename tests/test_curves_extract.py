@@ -17,6 +17,7 @@ from edgedog.curves import filtering
 from edgedog.curves.config import ExtractConfig
 from edgedog.curves.extract import extract_curves, extract_run
 from edgedog.errors import ConfigError, InputError
+from edgedog.groundtruth import ground_truth_for
 from edgedog.primitives import EdgePrimitives, read_ply
 from edgedog.scenes.camera import Camera, intrinsics, w2c_from_opengl_c2w
 from edgedog.train.config import TrainConfig
@@ -372,13 +373,13 @@ def test_the_silhouette_filter_alone_needs_no_edge_maps(builtin_scene_dir, tmp_p
 def test_cli_extract_on_ground_truth_primitives(abc_nef_scene_dir, tmp_path):
     from edgedog.scenes import load_scene
 
-    gt = load_scene(abc_nef_scene_dir).ground_truth.load()[::2]
+    gt = ground_truth_for(load_scene(abc_nef_scene_dir).root).load()[::2]
     rng = np.random.default_rng(0)
     neighbourhoods = gt[cKDTree(gt).query(gt, 8)[1]] - gt[:, None]
     directions = np.linalg.svd(neighbourhoods, full_matrices=False)[2][:, 0]
     write_primitives(tmp_path / "primitives.ply", gt + rng.normal(0, 0.002, gt.shape), directions, 0.8)
     (tmp_path / "log.json").write_text(json.dumps({"scene": str(abc_nef_scene_dir), "detector": "pidinet"}))
-    write_run(RunFolder(tmp_path, abc_nef_scene_dir, "paper", TrainConfig()))  # what makes it a run folder
+    write_run(RunFolder(tmp_path, abc_nef_scene_dir, "full", TrainConfig()))  # what makes it a run folder
     result = subprocess.run([sys.executable, "-m", "edgedog", "extract", tmp_path,
                              "--set", "filter_projection=false"], capture_output=True, text=True)
     assert result.returncode == 0, result.stderr

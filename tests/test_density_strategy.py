@@ -3,13 +3,11 @@ where the copies go, and the primitive budget."""
 
 from __future__ import annotations
 
-import dataclasses
-
 import pytest
 import torch
 from edgedog.renderer.config import RasterConfig
 
-from edgedog.train.config import TrainConfig
+from edgedog.train.config import TrainConfig, with_settings
 from edgedog.train.model import EdgeModel
 from edgedog.train.optim import Optimizers
 from edgedog.train.strategy import DensityStrategy
@@ -23,9 +21,9 @@ CHOSEN = [2, 4, 6, 9]
 def duplicate(max_primitives: int) -> tuple[EdgeModel, EdgeModel, Optimizers, list[dict]]:
     """The model before and after a duplication event at epoch 0 (copies 2, noise 0.05), its Adam
     (after one step of unit gradients at learning rate 0: every moment nonzero), and the log."""
-    config = dataclasses.replace(TrainConfig(), duplicate_epochs=(0,), cull_projection_epochs=(),
-                                 cull_opacity_epochs=(), primitive_uncertainty=False, duplicate_copies=2,
-                                 duplicate_threshold=0.5, duplicate_noise=0.05, max_primitives=max_primitives)
+    config = with_settings(TrainConfig(), dict(
+        duplicate_epochs=(0,), cull_projection_epochs=(), cull_opacity_epochs=(), primitive_uncertainty=False,
+        duplicate_copies=2, duplicate_threshold=0.5, duplicate_noise=0.05, max_primitives=max_primitives))
     g = torch.Generator().manual_seed(0)
     arrays = (torch.rand(N, 3, generator=g), torch.randn(N, 3, generator=g), torch.randn(N, 4, generator=g),
               torch.randn(N, generator=g), torch.randn(N, 2, generator=g))

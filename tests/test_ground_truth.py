@@ -5,14 +5,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from edgedog.groundtruth import GT_SPACING, abc_points_from_cad, read_points_ply
+from edgedog.groundtruth import GT_SPACING, abc_points_from_cad, ground_truth_for, read_points_ply
 from edgedog.metrics import score_points
 from edgedog.scenes import load_scene
 
 
 def gt_in_world(scene) -> np.ndarray:
     gt_to_world = np.linalg.inv(scene.world_to_gt)  # may hold a scale: not a rigid inverse
-    points = scene.ground_truth.load()
+    points = ground_truth_for(scene.root).load()
     return points @ gt_to_world[:3, :3].T + gt_to_world[:3, 3]
 
 
@@ -47,7 +47,7 @@ def test_a_wrong_convention_would_be_caught(abc_nef_scene_dir):
 
 
 def test_cad_ground_truth_follows_the_protocol(abc_nef_scene_dir):
-    source = load_scene(abc_nef_scene_dir).ground_truth
+    source = ground_truth_for(abc_nef_scene_dir)
     assert source.features is not None
     points = source.load()
     # Normalised into [0, 1]^3 with the longest side exactly 1.
@@ -63,7 +63,7 @@ def test_cad_ground_truth_follows_the_protocol(abc_nef_scene_dir):
 
 
 def test_sampled_ply_ground_truth(abc_emap_scene_dir):
-    source = load_scene(abc_emap_scene_dir).ground_truth
+    source = ground_truth_for(abc_emap_scene_dir)
     assert source.sampled_ply is not None and source.sampled_ply.name == "00004926_0.005.ply"
     points = source.load()
     assert points.shape == (63840, 3)
@@ -72,7 +72,7 @@ def test_sampled_ply_ground_truth(abc_emap_scene_dir):
 
 @pytest.mark.parametrize("fixture", ["abc_nef_scene_dir", "abc_emap_scene_dir"])
 def test_ground_truth_scores_perfectly_against_itself(fixture, request):
-    gt = load_scene(request.getfixturevalue(fixture)).ground_truth.load()
+    gt = ground_truth_for(request.getfixturevalue(fixture)).load()
     metrics = score_points(gt, gt)
     assert metrics.accuracy_mm == 0 and metrics.completeness_mm == 0
     assert all(v == 100 for d in (metrics.precision, metrics.recall, metrics.fscore) for v in d.values())
@@ -80,7 +80,7 @@ def test_ground_truth_scores_perfectly_against_itself(fixture, request):
 
 @pytest.mark.parametrize("fixture", ["abc_nef_scene_dir", "abc_emap_scene_dir"])
 def test_a_copy_shifted_by_7mm_scores_what_geometry_says(fixture, request):
-    gt = load_scene(request.getfixturevalue(fixture)).ground_truth.load()
+    gt = ground_truth_for(request.getfixturevalue(fixture)).load()
     shift = 0.007 * np.array([2.0, -1.0, 2.0]) / 3.0  # |shift| = 7 mm
     moved = gt + shift
     metrics = score_points(moved, gt)

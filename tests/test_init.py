@@ -10,11 +10,19 @@ import pytest
 
 from edgedog.builtin.scene import ground_truth_points, write_box_scene
 from edgedog.errors import ConfigError, InputError
-from edgedog.init import InitialPoints, initialize, nearest_neighbour_scales, uniform_init
+from edgedog.init import (
+    DEFAULTS,
+    InitialPoints,
+    InitSettings,
+    initialize,
+    nearest_neighbour_scales,
+    uniform_init,
+)
 from edgedog.init.triangulate import edge_support
 from edgedog.scenes import load_scene
 from edgedog.scenes.camera import Camera
 from edgedog.scenes.common import look_at_point
+from edgedog.train.config import TrainConfig
 from tests.helpers.paths import shared_path as shared
 
 DTU_VIEWS = list(range(10, 20))  # neighbouring views of the second row of the DTU rig
@@ -37,9 +45,9 @@ def test_uniform_init_counts_cube_and_scales():
 
 
 def test_uniform_init_seed_reproducible():
-    a = uniform_init(np.zeros(3), seed=7)
-    b = uniform_init(np.zeros(3), seed=7)
-    c = uniform_init(np.zeros(3), seed=8)
+    a = uniform_init(np.zeros(3), side=1.1, count=2500, seed=7)
+    b = uniform_init(np.zeros(3), side=1.1, count=2500, seed=7)
+    c = uniform_init(np.zeros(3), side=1.1, count=2500, seed=8)
     assert np.array_equal(a.positions, b.positions) and np.array_equal(a.scales, b.scales)
     assert not np.array_equal(a.positions, c.positions)
     assert len(a) == 2500 and a.report["scale_range"] == [0.004, 0.005]
@@ -47,9 +55,9 @@ def test_uniform_init_seed_reproducible():
 
 def test_uniform_init_rejects_bad_arguments():
     with pytest.raises(ValueError):
-        uniform_init(np.zeros(3), side=0)
+        uniform_init(np.zeros(3), side=0, count=10)
     with pytest.raises(ValueError):
-        uniform_init(np.zeros(3), scale_range=(0.5, 0.1))
+        uniform_init(np.zeros(3), side=1.1, count=10, scale_range=(0.5, 0.1))
 
 
 def test_initial_points_checks_shapes_and_method():
@@ -100,7 +108,8 @@ def test_edge_support_counts_views_where_points_fall_on_edges(box_scene):
 
 def test_auto_falls_back_to_uniform_on_featureless_renders(box_scene, tmp_path):
     # Flat-shaded RGBA renders (composited for COLMAP) give SIFT nothing to triangulate.
-    result = initialize(box_scene, "auto", workdir=tmp_path / "colmap", detector="exact",
+    # The cube of the scene's bounds (side None), so that every point lies in them.
+    result = initialize(box_scene, InitSettings(side=None), workdir=tmp_path / "colmap", detector="exact",
                         min_points=50, seed=1)
     assert result.method == "uniform"
     assert result.report["requested"] == "auto"
@@ -111,17 +120,24 @@ def test_auto_falls_back_to_uniform_on_featureless_renders(box_scene, tmp_path):
     assert np.all((result.positions >= lo) & (result.positions <= hi))
     assert len(list((tmp_path / "colmap" / "images").glob("*.png"))) == len(box_scene)
     with pytest.raises(InputError, match="triangulation found no points"):
-        initialize(box_scene, "triangulate", workdir=tmp_path / "colmap", views=[0, 1, 2, 3])
+        initialize(box_scene, InitSettings(method="triangulate"), workdir=tmp_path / "colmap",
+                   views=[0, 1, 2, 3])
 
 
 def test_initialize_uniform_and_unknown_method(box_scene):
-    result = initialize(box_scene, "uniform", uniform_count=100, seed=2)
+    result = initialize(box_scene, InitSettings(method="uniform", count=100), seed=2)
     assert result.method == "uniform" and len(result) == 100
     assert result.report["reason"] == "requested"
-    with pytest.raises(ConfigError, match="init method"):
-        initialize(box_scene, "random")
+    with pytest.raises(ConfigError, match="method must be one of auto, triangulate, sfm-points, uniform"):
+        InitSettings(method="random")
     with pytest.raises(InputError, match="no SfM points"):
-        initialize(box_scene, "sfm-points")
+        initialize(box_scene, InitSettings(method="sfm-points"))
+
+
+def test_edgedog_init_starts_as_training_does():
+    """One place for the defaults: `edgedog init`, `initialize` and training's init section."""
+    assert DEFAULTS == TrainConfig().init == InitSettings()
+    assert (DEFAULTS.count, DEFAULTS.side, DEFAULTS.edge_threshold) == (10000, 1.1, 0.3)
 
 
 # --- DTU scan 37: real photos, given cameras ---------------------------------------------------
@@ -130,8 +146,7 @@ def test_initialize_uniform_and_unknown_method(box_scene):
 def dtu_triangulated(tmp_path_factory):
     scene = load_scene(shared("dtu_scan37"), downscale=2)
     workdir = tmp_path_factory.mktemp("dtu_colmap")
-    result = initialize(scene, "auto", workdir=workdir, min_points=200, views=DTU_VIEWS,
-                        max_image_size=800)
+    result = initialize(scene, workdir=workdir, min_points=200, views=DTU_VIEWS, max_image_size=800)
     return scene, result
 
 
@@ -175,8 +190,8 @@ def test_dtu_triangulated_points_project_inside_the_object_masks(dtu_triangulate
 def test_abc_auto_triangulates_on_edges_or_falls_back_with_a_reason(tmp_path):
     scene = load_scene(shared("abc_nef/00000006"))
     min_points = 500
-    result = initialize(scene, "auto", workdir=tmp_path / "colmap", detector="pidinet",
-                        min_points=min_points, views=list(range(0, 50, 5)))
+    result = initialize(scene, InitSettings(count=2500, side=None), workdir=tmp_path / "colmap",
+                        detector="pidinet", min_points=min_points, views=list(range(0, 50, 5)))
     report = result.report
     attempt = report["attempts"][-1]
     assert attempt["method"] == "triangulated"
@@ -200,7 +215,7 @@ def test_uniform_cube_centres_on_the_point_an_orbit_looks_at(box_scene):
     # would start most primitives off the object.
     loose = dataclasses.replace(box_scene, bounds=np.array([[-1.0] * 3, [1.0] * 3]))
     np.testing.assert_allclose(look_at_point(loose.cameras), [0.5, 0.5, 0.5], atol=1e-6)
-    result = initialize(loose, "uniform", uniform_count=2000, uniform_side=1.1, seed=3)
+    result = initialize(loose, InitSettings(method="uniform", count=2000, side=1.1), seed=3)
     np.testing.assert_allclose(result.positions.mean(0), [0.5, 0.5, 0.5], atol=0.03)
     assert np.all(np.abs(result.positions - 0.5) <= 0.55)
 

@@ -3,7 +3,6 @@ figure and the studio's layer toggles."""
 
 from __future__ import annotations
 
-import dataclasses
 import json
 
 import cv2
@@ -19,6 +18,7 @@ from edgedog.renderer.rasterize import rasterize
 from edgedog.edges.registry import make_detector
 from edgedog.errors import ConfigError
 from edgedog.scenes import load_scene
+from edgedog.train.config import with_settings
 from edgedog.train.layers import LowerLayers
 from edgedog.train.levels import CANNY_LEVELS, PIDINET_LEVELS, parse_level, resolve_levels
 from edgedog.train.model import GROUPS
@@ -118,7 +118,7 @@ def test_residual_init_skips_edges_the_lower_layers_render(box, tmp_path):
     first = Trainer(box, config, tmp_path / "L0", progress=False)
     first.run()
     # Layer 1 on the same maps: most of its edges are rendered already by layer 0.
-    same = Trainer(box, dataclasses.replace(config, layer=1), tmp_path / "L1", progress=False,
+    same = Trainer(box, with_settings(config, {"layers.layer": 1}), tmp_path / "L1", progress=False,
                    lower=first.stack())
     fresh = Trainer(box, config, tmp_path / "fresh", progress=False)
     assert same.initial_count < fresh.initial_count
@@ -144,7 +144,7 @@ def test_layered_training_writes_every_layer_and_selection(layered_run):
     assert counts["L0+L1"] == counts["L0"] + counts["L1"] and counts["L1"] > 0
     log = json.loads((run / "L1" / "log.json").read_text())
     assert log["lower_primitives"] == counts["L0"] and log["detector"] == "canny:30,90"
-    assert log["config"]["layer"] == 1
+    assert log["config"]["layers"]["layer"] == 1
     assert "L0+L1" in stdout and '"layer": "L1"' in stdout
 
 
@@ -178,7 +178,7 @@ def test_the_layers_figure_has_a_column_per_stack(layered_run):
 
     run, _ = layered_run
     layered = read_layered(run)
-    scene = load_scene(layered.scene, downscale=layered.base.downscale)
+    scene = load_scene(layered.scene, downscale=layered.base.maps.downscale)
     try:
         path = render_layers_figure(layered, scene, run / "figure.png", size=160)
     except GLUnavailableError as error:
@@ -205,7 +205,7 @@ def test_layer_toggles_select_primitives_in_the_render(layered_run):
     assert shown == {"L0": True, "L1": True}
     only_l0 = visible_subset(snapshot, {"L0": True, "L1": False})
     assert len(only_l0.means) == len(members["L0"]) and set(only_l0.layers) == {0}
-    scene = load_scene(layered.scene, downscale=layered.base.downscale)
+    scene = load_scene(layered.scene, downscale=layered.base.maps.downscale)
     full = inspect_view(snapshot, scene, 0, None, RasterConfig(), "exp", True)
     base = inspect_view(only_l0, scene, 0, None, RasterConfig(), "exp", True)
     render = [p for p in full if p.name == "render"][0].rgba
@@ -223,7 +223,7 @@ def test_layers_bench_compares_the_stack_with_the_direct_run(builtin_scene_dir, 
     names = [row["selection"] for row in results["rows"]]
     assert names == ["L0", "L1", "L0+L1", "direct (L1 maps)"]
     direct = json.loads((tmp_path / "direct" / "log.json").read_text())
-    assert direct["detector"] == "canny:30,90" and direct["config"]["layer"] == 0
+    assert direct["detector"] == "canny:30,90" and direct["config"]["layers"]["layer"] == 0
     table = (tmp_path / "layers.md").read_text()
     assert table == markdown(results) and "| direct (L1 maps) |" in table
     stamp = (tmp_path / "direct" / "checkpoint.pt").stat().st_mtime_ns
@@ -232,5 +232,5 @@ def test_layers_bench_compares_the_stack_with_the_direct_run(builtin_scene_dir, 
     assert again["rows"] == results["rows"]
     assert (tmp_path / "direct" / "checkpoint.pt").stat().st_mtime_ns == stamp  # reused, not retrained
     with pytest.raises(InputError, match="another scene, config or levels"):
-        run_layers_bench(builtin_scene_dir, tmp_path, "preview", dataclasses.replace(config, seed=1), levels,
-                         progress=False, figure=False)
+        run_layers_bench(builtin_scene_dir, tmp_path, "preview", with_settings(config, {"run.seed": 1}),
+                         levels, progress=False, figure=False)

@@ -15,7 +15,7 @@ import torch
 from edgedog.errors import InputError
 from edgedog.scenes import load_scene
 from edgedog.train import layered, lifecycle
-from edgedog.train.config import preset
+from edgedog.train.config import preset, with_settings
 from edgedog.train.lifecycle import (
     CONTINUE,
     FINISHED,
@@ -32,12 +32,12 @@ from edgedog.train.run_folder import RunFolder, read_run, write_run
 from edgedog.train.trainer import Trainer
 from tests.helpers.bad_inputs import edgedog
 
-SETTINGS = {"epochs": 2, "init_count": 300, "checkpoint_every": 1}
+SETTINGS = {"epochs": 2, "init.count": 300, "checkpoint_every": 1}
 CLI_SETTINGS = [arg for key, value in SETTINGS.items() for arg in ("--set", f"{key}={value}")]
 
 
 def config(**changes):
-    return dataclasses.replace(preset("preview"), **SETTINGS, **changes)
+    return with_settings(preset("preview"), {**SETTINGS, **changes})
 
 
 @pytest.fixture(scope="module")
@@ -95,7 +95,7 @@ def test_an_interrupted_run_resumes_from_its_checkpoint_step(small_box_scene, fi
     out = tmp_path / "run"
     plan = plan_run(out, small_box_scene, "preview", config(), REUSE)
     write_run(plan.run)
-    scene = load_scene(small_box_scene, downscale=config().downscale)
+    scene = load_scene(small_box_scene, downscale=config().maps.downscale)
     trainer = Trainer(scene, config(), out, progress=False)
     while trainer.epoch < 1:  # the end of the first epoch saves a checkpoint
         trainer.step()
@@ -112,7 +112,7 @@ def test_finished_means_one_thing(small_box_scene, tmp_path):
     out = tmp_path / "run"
     run = RunFolder(out, load_scene(small_box_scene).root, "preview", config())
     write_run(run)
-    scene = load_scene(small_box_scene, downscale=run.config.downscale)
+    scene = load_scene(small_box_scene, downscale=run.config.maps.downscale)
     trainer = Trainer(scene, run.config, out, progress=False)
     while trainer.epoch < 1:
         trainer.step()

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from edgedog.cli import main
+from edgedog.groundtruth import ground_truth_for
 from edgedog.scenes import load_scene
 from edgedog.scenes.nerf import load_nerf
 from edgedog.synthetic.cameras import orbit_cameras
@@ -42,7 +43,8 @@ def frames(folder) -> list[dict]:
 def test_make_scene_writes_a_loadable_abc_nef_scene(clean, capsys):
     scene = load_scene(clean)
     assert scene.format == "nerf" and len(scene) == VIEWS and scene.detectors == ["canny"]
-    np.testing.assert_allclose(scene.ground_truth.load(), make_part("plate-holes", 3).ground_truth())
+    part_points = make_part("plate-holes", 3).ground_truth()
+    np.testing.assert_allclose(ground_truth_for(scene.root).load(), part_points)
     for i, expected in enumerate(orbit_cameras(VIEWS, SIZE)):  # the ABC-NEF orbit, f scaled with size
         np.testing.assert_allclose(scene.camera(i).w2c, expected.w2c, atol=1e-9)
         np.testing.assert_allclose(scene.camera(i).K, expected.K)
@@ -59,7 +61,7 @@ def test_make_scene_writes_a_loadable_abc_nef_scene(clean, capsys):
 
 def test_the_pseudo_edges_are_high_on_the_ground_truth(clean):
     scene = load_scene(clean)
-    points = scene.ground_truth.load()
+    points = ground_truth_for(scene.root).load()
     for i in range(len(scene)):
         edges = scene.load_edge_map(i)
         pixels, inside = scene.camera(i).pixels(points)
@@ -75,7 +77,7 @@ def test_seeds_change_the_part_and_renamed_scenes_keep_their_ground_truth(clean,
     assert dims[0] != dims[1]
     renamed = tmp_path / "renamed"
     other.rename(renamed)
-    assert load_scene(renamed).ground_truth.sampled_ply.name == "other_0.005.ply"
+    assert ground_truth_for(load_scene(renamed).root).sampled_ply.name == "other_0.005.ply"
 
 
 def test_an_existing_folder_is_refused_in_one_line(clean, capsys):

@@ -3,7 +3,6 @@ loss, and their bookkeeping in checkpoints and logs."""
 
 from __future__ import annotations
 
-import dataclasses
 import json
 
 import numpy as np
@@ -13,6 +12,7 @@ from edgedog.renderer.rasterize import rasterize
 
 from edgedog.edges.correct import blur_to_profile, shift_edge_map
 from edgedog.errors import ConfigError
+from edgedog.train.config import with_settings
 from edgedog.train.losses import projection_loss
 from edgedog.train.targets import LearnedShift, prepare_maps
 from edgedog.train.trainer import Trainer
@@ -49,17 +49,17 @@ def test_a_faint_thin_line_keeps_its_edge_pixels_when_shifted_by_a_fraction_of_a
     line = np.tile(0.65 * np.exp(-2.0 * (columns - 20) ** 2), (30, 1)).astype(np.float32)  # sigma 0.5 px
     config = tiny_config()
     (target,), (mask,), _ = prepare_maps([line], config, (0.45, 0.0))
-    assert (line >= config.edge_threshold).sum() == 30
-    assert (target >= config.edge_threshold).sum() == 0  # interpolation dims the line below 0.5
-    np.testing.assert_array_equal(mask, line >= config.edge_threshold)  # the nearest pixel is itself
-    (thin,), _, _ = prepare_maps([line], dataclasses.replace(config, edge_profile="thin"), (0.0, 0.0))
+    assert (line >= config.maps.edge_threshold).sum() == 30
+    assert (target >= config.maps.edge_threshold).sum() == 0  # interpolation dims the line below 0.5
+    np.testing.assert_array_equal(mask, line >= config.maps.edge_threshold)  # the nearest pixel is itself
+    (thin,), _, _ = prepare_maps([line], with_settings(config, {"maps.edge_profile": "thin"}), (0.0, 0.0))
     assert np.argmax(thin[10]) == 20
 
 
 def test_the_learned_shift_finds_a_known_offset():
     line = torch.from_numpy(vertical_line(x=20.0))
     render = torch.from_numpy(shift_edge_map(vertical_line(x=20.0), -0.8, 0.0))  # where the truth is
-    learned = LearnedShift(dataclasses.replace(tiny_config(), lr_map_shift=0.02, map_shift_from_epoch=0))
+    learned = LearnedShift(tiny_config(lr_map_shift=0.02, map_shift_from_epoch=0))
     for _ in range(300):
         loss = (learned.target(line, epoch=0) - render).abs().mean()
         loss.backward()

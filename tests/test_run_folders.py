@@ -19,8 +19,10 @@ import torch
 from edgedog.errors import InputError, OutputError
 from edgedog.files import atomic_write_json
 from edgedog.train.checkpoint import read_checkpoint
-from edgedog.train.run_folder import LOCK_FILE, RunLock, read_run
+from edgedog.train.lifecycle import is_finished
+from edgedog.train.run_folder import LOCK_FILE, RUN_VERSION, RunLock, read_run
 from tests.helpers.bad_inputs import edgedog, snapshot
+from tests.helpers.old_runs import flat_config
 from tests.helpers.tiny_runs import QUICK_TRAIN as TRAIN
 from tests.helpers.tiny_runs import make_small_scene
 
@@ -69,6 +71,26 @@ def test_checkpoints_hold_only_plain_data(finished_run):
     assert isinstance(saved["model"]["means"], torch.Tensor)
 
 
+def test_a_run_folder_of_format_2_reads_as_the_same_run_and_resumes(finished_run, tiny_scenes, tmp_path):
+    """Before the sections: config.json of version 2, every config flat, 'paper' naming `full`."""
+    run = tmp_path / "run"
+    shutil.copytree(finished_run, run)
+    now = read_run(run)
+    data = json.loads((run / "config.json").read_text())
+    assert data["version"] == RUN_VERSION == 3 and data["preset"] == "preview"
+    data.update(version=2, config=flat_config(data["config"]))
+    (run / "config.json").write_text(json.dumps(data))
+    log = json.loads((run / "log.json").read_text())
+    (run / "log.json").write_text(json.dumps({**log, "config": flat_config(log["config"])}))
+    saved = torch.load(run / "checkpoint.pt", weights_only=True)
+    torch.save({**saved, "config": flat_config(saved["config"])}, run / "checkpoint.pt")
+    assert read_run(run) == now and is_finished(run)
+    (run / "config.json").write_text(json.dumps({**data, "preset": "paper"}))
+    assert read_run(run).preset == "full"  # what 'paper' named then
+    resumed = edgedog("train", tiny_scenes[0], "--out", run, "--resume", "--quiet")
+    assert resumed.returncode == 0, resumed.stderr
+
+
 def test_a_folder_that_is_not_a_run_is_never_written(tiny_scenes, tmp_path):
     mine = tmp_path / "mine"
     mine.mkdir()
@@ -88,7 +110,7 @@ def test_resume_refuses_another_scene_and_new_settings(finished_run, tiny_scenes
     before = snapshot(run)
     other = edgedog("train", tiny_scenes[1], "--out", run, "--resume", "--quiet")
     assert other.returncode == 2 and "other cameras or images" in other.stderr, other.stderr
-    for options in (["--set", "epochs=200"], ["--preset", "paper"], ["--set", "keep_ratio=5"]):
+    for options in (["--set", "epochs=200"], ["--preset", "full"], ["--set", "keep_ratio=5"]):
         changed = edgedog("train", tiny_scenes[0], "--out", run, "--resume", "--quiet", *options)
         assert changed.returncode == 2 and "cannot change them" in changed.stderr, changed.stderr
     assert snapshot(run) == before
@@ -129,7 +151,7 @@ def test_two_trainings_into_one_folder_one_is_refused(tiny_scenes, tmp_path):
     assert codes == [0, 2], results
     refused = next(err for code, err in results if code == 2)
     assert "in use by another edgedog process" in refused or "already holds a run" in refused, refused
-    assert read_run(run).config.epochs == 2 and (run / "log.json").is_file()
+    assert read_run(run).config.schedule.epochs == 2 and (run / "log.json").is_file()
 
 
 def test_the_lock_is_exclusive_and_released(tmp_path):

@@ -15,6 +15,7 @@ import cv2
 import numpy as np
 import pytest
 
+from edgedog.groundtruth import ground_truth_for
 from edgedog.scenes import load_scene
 from tests.helpers.paths import shared_path
 from tests.helpers.scene_builders import circle_c2ws
@@ -398,7 +399,7 @@ def test_real_abc_nef():
     assert len(scene) == 50
     assert {(v.camera.width, v.camera.height) for v in scene.views} == {(800, 800)}
     assert scene.detectors == ["pidinet"]
-    assert scene.ground_truth is not None
+    assert ground_truth_for(root) is not None
     cam = scene.camera(0)
     np.testing.assert_allclose(cam.K[:2, 2], [399.5, 399.5])
     assert cam.K[0, 0] == pytest.approx(1111.11, abs=0.01)
@@ -418,7 +419,7 @@ def test_real_abc_emap():
     assert scene.format == "emap"
     assert len(scene) == 50
     assert scene.detectors == ["dexined", "pidinet"]
-    assert scene.ground_truth is not None
+    assert ground_truth_for(root) is not None
     assert (scene.camera(0).width, scene.camera(0).height) == (800, 800)
 
 

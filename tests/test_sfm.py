@@ -84,7 +84,7 @@ def test_sfm_recovers_dtu_camera_centres(dtu_sfm):
     # Measured: RMS 0.0058 scene units for a camera spread of 1.12 (0.5 %).
     assert rms < 0.03 * spread, (rms, spread)
     # The recovered scene is usable: its own SfM points initialise it.
-    init = initialize(recovered, "auto", min_points=500)
+    init = initialize(recovered, min_points=500)
     assert init.method == "sfm-points" and len(init) == len(recovered.sfm_points)
     assert "SfM points" in init.report["reason"]
 

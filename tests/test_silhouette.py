@@ -114,9 +114,9 @@ def test_a_thin_line_keeps_its_edge_pixels_when_pulled_by_a_fraction_of_a_pixel(
     line = 0.65 * ring_map(0.5, sigma=0.5)  # a faint line half a pixel outside, as at 200 px
     config = tiny_config(silhouette_correction="measured")
     (target,), (mask,), report = prepare_maps([line], config, (0.0, 0.0), [outline])
-    before = line >= config.edge_threshold
+    before = line >= config.maps.edge_threshold
     assert report["offset_px"] == pytest.approx(0.5, abs=0.1) and before.sum() > 100
-    assert (target >= config.edge_threshold).sum() < 0.2 * before.sum()  # interpolation dims the line
+    assert (target >= config.maps.edge_threshold).sum() < 0.2 * before.sum()  # interpolation dims the line
     np.testing.assert_array_equal(mask, before)  # under half a pixel: the nearest pixel is itself
 
 

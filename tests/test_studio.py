@@ -3,7 +3,6 @@ window itself under a virtual X server."""
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import os
 import subprocess
@@ -41,7 +40,7 @@ from edgedog.curve_files import read_edges
 from edgedog.errors import InputError
 from edgedog.scenes import load_scene
 from edgedog.train import losses
-from edgedog.train.config import preset
+from edgedog.train.config import preset, with_settings
 from edgedog.train.run_folder import RUN_CONFIG, RunLock, read_run
 from edgedog.train.trainer import CHECKPOINT, Controls, Snapshot, Trainer
 
@@ -63,7 +62,7 @@ BOX_CENTRE = (BOX_MIN + BOX_MAX) / 2
 
 
 def small_config(**changes):
-    return dataclasses.replace(preset("preview"), init_count=300, **changes)
+    return with_settings(preset("preview"), {"init.count": 300, **changes})
 
 
 # --- the training thread, with a stand-in trainer --------------------------------------------
@@ -84,7 +83,7 @@ class FakeTrainer:
     """What the worker drives: steps that take `step_seconds` and record the controls they read."""
 
     def __init__(self, steps: int = 10_000, step_seconds: float = 0.002, fail_at: int | None = None):
-        self.config = dataclasses.replace(preset("preview"), epochs=steps)
+        self.config = with_settings(preset("preview"), {"epochs": steps})
         self.controls = BoundaryControls(self, 0.9, "exp")
         self.step_seconds, self.fail_at = step_seconds, fail_at
         self.step_index, self.in_step, self.seen, self.outputs, self.events = 0, False, [], 0, []
@@ -92,7 +91,7 @@ class FakeTrainer:
 
     @property
     def done(self) -> bool:
-        return self.step_index >= self.config.epochs
+        return self.step_index >= self.config.schedule.epochs
 
     @property
     def epoch(self) -> int:
@@ -214,7 +213,7 @@ def test_the_trainers_of_a_layered_run_train_one_after_the_other():
 
 def test_stopping_a_real_run_keeps_a_checkpoint_it_resumes_from(small_box, tmp_path):
     config = small_config(epochs=1000, checkpoint_every=2)
-    scene = load_scene(small_box, downscale=config.downscale)
+    scene = load_scene(small_box, downscale=config.maps.downscale)
     worker = TrainingWorker(lambda: iter([Trainer(scene, config, tmp_path, progress=False)]))
     worker.start()
     wait_for(lambda: (tmp_path / CHECKPOINT).is_file() and worker.steps > 40, timeout=30)
@@ -228,7 +227,7 @@ def test_stopping_a_real_run_keeps_a_checkpoint_it_resumes_from(small_box, tmp_p
 
 def test_a_finished_run_has_the_files_of_edgedog_train_and_reopens_as_it_ended(small_box, tmp_path):
     session = Session.open(small_box, tmp_path / "runs", "preview", ["init_count=200", "epochs=2"])
-    assert session.config.init_count == 200 and session.ground_truth.shape[1] == 3
+    assert session.config.init.count == 200 and session.ground_truth.shape[1] == 3
     worker = session.start("preview", session.config)
     wait_for(lambda: not worker.alive, timeout=60)
     assert worker.phase == FINISHED, worker.error
@@ -295,8 +294,8 @@ def test_restart_settings_make_the_config_and_live_ones_go_with_it():
     state.restart.kernel, state.restart.epochs, state.restart.k_init = "gaussian", 7, (0.5, -0.5)
     state.live.keep_ratio, state.live.weighting = 0.6, "up"
     config = state.restart.apply(preset("preview"), state.live)
-    assert (config.kernel, config.epochs, config.k_init, config.keep_ratio, config.weighting) == \
-        ("gaussian", 7, (0.5, -0.5), 0.6, "up")
+    assert (config.model.kernel, config.schedule.epochs, config.init.k, config.strategy.keep_ratio,
+            config.loss.weighting) == ("gaussian", 7, (0.5, -0.5), 0.6, "up")
 
 
 # --- inspectors and curves -------------------------------------------------------------------
@@ -455,6 +454,6 @@ def test_the_window_trains_follows_the_ui_exports_and_closes(small_box, xvfb_dis
     assert image.shape == (800, 1280, 3) and image.std() > 10
     # The checkpoint left behind is whole: a new trainer resumes from it.
     run = read_run(Path(probe["run_dir"]))
-    resumed = Trainer(load_scene(run.scene, downscale=run.config.downscale), run.config, run.path,
+    resumed = Trainer(load_scene(run.scene, downscale=run.config.maps.downscale), run.config, run.path,
                       progress=False)
     assert resumed.step_index > 0

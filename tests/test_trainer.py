@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import dataclasses
 import json
 
 import numpy as np
@@ -13,19 +12,19 @@ from edgedog.errors import ConfigError
 from edgedog.primitives import read_ply
 from edgedog.scenes import load_scene
 from edgedog.train import losses
-from edgedog.train.config import TrainConfig, for_detector, preset, with_epochs, with_overrides
+from edgedog.train.config import TrainConfig, for_detector, preset, with_epochs, with_overrides, with_settings
 from edgedog.train.model import GROUPS, EdgeModel
 from edgedog.train.trainer import Trainer, _finite_grads
 
 
 def small_config(**changes) -> TrainConfig:
     """A few epochs at 1/4 resolution with every event early, on 12 of the box's views."""
-    base = dataclasses.replace(
-        preset("preview"), downscale=4, epochs=6, init_count=400, duplicate_epochs=(1, 3),
-        cull_projection_epochs=(2,), cull_opacity_epochs=(4,), fisher_every=2, sampled_loss_from_epoch=1,
-        ratio_from_epoch=1, direction_from_epoch=2, checkpoint_every=3, snapshot_every=5,
-        init_side=0.8)
-    return dataclasses.replace(base, **changes)
+    base = with_settings(preset("preview"), {
+        "downscale": 4, "epochs": 6, "init.count": 400, "duplicate_epochs": (1, 3),
+        "cull_projection_epochs": (2,), "cull_opacity_epochs": (4,), "fisher_every": 2,
+        "loss.sampled_from_epoch": 1, "ratio_from_epoch": 1, "direction_from_epoch": 2,
+        "checkpoint_every": 3, "snapshot_every": 5, "init.side": 0.8})
+    return with_settings(base, changes)
 
 
 @pytest.fixture
@@ -62,7 +61,7 @@ def test_density_control_events_and_outputs(box, tmp_path):
             assert event["after"] == round(0.9 * event["before"])
         elif event["event"] == "duplicate":  # which rows, how many times: test_density_strategy.py
             added = event["after"] - event["before"]
-            assert added > 0 and added % trainer.config.duplicate_copies == 0
+            assert added > 0 and added % trainer.config.strategy.duplicate_copies == 0
         else:
             assert event["after"] <= event["before"]
     # Adam's moments stay aligned with the parameters through every change.
@@ -73,7 +72,8 @@ def test_density_control_events_and_outputs(box, tmp_path):
     for output in ("primitives.ply", "points.ply", "log.json", "checkpoint.pt"):
         assert (tmp_path / "run" / output).is_file()
     logged = json.loads((tmp_path / "run" / "log.json").read_text())["config"]  # resolved for the maps
-    assert (logged["direction_factor"], logged["ratio_factor"], logged["edge_profile"]) == (0.1, 0.05, "raw")
+    assert (logged["loss"]["direction_factor"], logged["loss"]["ratio_factor"],
+            logged["maps"]["edge_profile"]) == (0.1, 0.05, "raw")
     snap = trainer.latest_snapshot
     assert snap.means.shape == (len(trainer.model), 3) and snap.step == trainer.step_index
     # primitives.ply holds the final snapshot's activated arrays, which invert to the parameters.
@@ -160,37 +160,47 @@ def test_non_finite_gradients_never_reach_the_parameters(box, tmp_path):
 
 
 def test_config_overrides():
-    config = with_overrides(TrainConfig(), ["kernel=gaussian", "keep_ratio=0.8", "pixel_uncertainty=off",
-                                            "duplicate_epochs=5,10", "init_side=none"])
-    assert config.kernel == "gaussian" and config.keep_ratio == 0.8 and not config.pixel_uncertainty
-    assert config.duplicate_epochs == (5, 10) and config.init_side is None
-    with pytest.raises(ConfigError, match="expected KEY=VALUE"):
+    given = ["model.kernel=gaussian", "keep_ratio=0.8", "pixel_uncertainty=off", "duplicate_epochs=5,10",
+             "init_side=none"]  # dotted, bare and old flat names
+    config = with_overrides(TrainConfig(), given)
+    assert config.model.kernel == "gaussian" and config.strategy.keep_ratio == 0.8
+    assert not config.loss.pixel_uncertainty
+    assert config.strategy.duplicate_epochs == (5, 10) and config.init.side is None
+    with pytest.raises(ConfigError, match="unknown setting 'nonsense'"):
         with_overrides(TrainConfig(), ["nonsense=1"])
-    with pytest.raises(ConfigError, match="keep_ratio"):
+    with pytest.raises(ConfigError, match="expected KEY=VALUE"):
+        with_overrides(TrainConfig(), ["keep_ratio"])
+    with pytest.raises(ConfigError, match="strategy.keep_ratio"):
         with_overrides(TrainConfig(), ["keep_ratio=1.5"])
     preview, fast = preset("preview"), preset("fast")
-    assert preview.epochs == 100 and preview.downscale == 2 and preview.duplicate_epochs[0] == 10
-    assert fast.epochs == 200 and fast.downscale == 1 and fast.fisher_every == 25
-    with pytest.raises(ConfigError, match="choose paper, fast, preview"):
+    assert preview.schedule.epochs == 100 and preview.maps.downscale == 2
+    assert preview.strategy.duplicate_epochs[0] == 10
+    assert fast.schedule.epochs == 200 and fast.maps.downscale == 1 and fast.strategy.fisher_every == 25
+    with pytest.raises(ConfigError, match="choose one of: full: .*; fast: .*; preview: .*; paper: "):
         preset("turbo")
 
 
 def test_settings_left_open_follow_the_detector():
+    def open_settings(config):
+        return config.loss.direction_factor, config.loss.ratio_factor, config.maps.edge_profile
+
     dexined = for_detector(TrainConfig(), "DexiNed")
-    assert (dexined.direction_factor, dexined.ratio_factor, dexined.edge_profile) == (0.01, 0.01, "profile")
+    assert open_settings(dexined) == (0.01, 0.01, "profile")
     pidinet = for_detector(TrainConfig(), "pidinet")
-    assert (pidinet.direction_factor, pidinet.ratio_factor, pidinet.edge_profile) == (0.1, 0.05, "raw")
+    assert open_settings(pidinet) == (0.1, 0.05, "raw")
     chosen = with_overrides(TrainConfig(), ["direction_factor=0.2", "edge_profile=thin"])
-    chosen = for_detector(chosen, "dexined")
-    assert (chosen.direction_factor, chosen.ratio_factor, chosen.edge_profile) == (0.2, 0.01, "thin")
+    assert open_settings(for_detector(chosen, "dexined")) == (0.2, 0.01, "thin")
     assert for_detector(dexined, "pidinet") == dexined  # a resolved config stays as it is
 
 
 def test_with_epochs_stretches_the_whole_schedule():
-    paper = preset("paper")
-    half = with_epochs(paper, 200)
-    assert half.epochs == 200 and half.fisher_every == 25 and half.direction_from_epoch == 125
-    assert half.duplicate_epochs[0] == 20 and half.cull_opacity_epochs == (62, 155)
-    assert with_epochs(paper, 400) == paper
+    full = preset("full")
+    half = with_epochs(full, 200)
+    assert half.schedule.epochs == 200 and half.strategy.fisher_every == 25
+    assert half.loss.direction_from_epoch == 125 and half.maps.shift_from_epoch == 50
+    assert half.run.checkpoint_every == 25 and half.schedule.lr_means_decay_epochs == (5, 10, 15, 20, 25)
+    assert half.strategy.duplicate_epochs[0] == 20 and half.strategy.cull_opacity_epochs == (62, 155)
+    assert (half.loss.sampled_every, half.run.snapshot_every) == (5, 25)  # periods in steps stay
+    assert with_epochs(full, 400) == full
     with pytest.raises(ConfigError):
-        with_epochs(paper, 0)
+        with_epochs(full, 0)

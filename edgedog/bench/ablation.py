@@ -8,13 +8,13 @@ same loss as with it off) share one run, so a table never reports two numbers fo
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 
 from edgedog.bench.tables import cell
 from edgedog.errors import ConfigError, InputError
 from edgedog.files import atomic_write_bytes, atomic_write_json
+from edgedog.settings import with_values
 from edgedog.train.config import TrainConfig
 from edgedog.train.run_folder import RunFolder, RunLock
 
@@ -30,7 +30,7 @@ TITLES = {COMPONENTS: "Components (Table 3)", WEIGHTING: "Weighting of the pixel
 @dataclass(frozen=True)
 class AblationRow:
     """One row: which table, its short key (`--rows`), its label, and the settings it changes
-    from the base config."""
+    from the base config (dotted setting name -> value)."""
 
     table: str
     key: str
@@ -41,7 +41,7 @@ class AblationRow:
 def component_rows() -> list[AblationRow]:
     """Table 3: the baseline, each of the DoG kernel and the two uncertainties alone, each pair,
     and the full model. Pixel U weights by the base config's w(Up) (the paper's was exp(Up):
-    `--set weighting=exp`)."""
+    `--set loss.weighting=exp`, or `--preset paper`)."""
     combos = [(0, 0, 0), (1, 0, 0), (0, 1, 0), (0, 0, 1), (1, 1, 0), (1, 0, 1), (0, 1, 1), (1, 1, 1)]
     rows = []
     for dog, pixel, primitive in combos:
@@ -50,34 +50,36 @@ def component_rows() -> list[AblationRow]:
         key = "+".join(k for k, on in (("dog", dog), ("pixel", pixel), ("fisher", primitive)) if on)
         key = {"": "baseline", "dog+pixel+fisher": "full"}.get(key, key)
         rows.append(AblationRow(COMPONENTS, key, "full EdgeDoG" if len(parts) == 3 else label, {
-            "kernel": "dog" if dog else "gaussian", "pixel_uncertainty": bool(pixel),
-            "primitive_uncertainty": bool(primitive)}))
+            "model.kernel": "dog" if dog else "gaussian", "loss.pixel_uncertainty": bool(pixel),
+            "strategy.primitive_uncertainty": bool(primitive)}))
     return rows
+
+
+FULL_MODEL = {"model.kernel": "dog", "loss.pixel_uncertainty": True, "strategy.primitive_uncertainty": True}
+"""The settings of the full EdgeDoG model."""
 
 
 def weighting_rows() -> list[AblationRow]:
     """Table 4: the full model with each weighting function w(Up)."""
     names = {"one": "w = 1", "exp_neg": "w = exp(-Up)", "one_minus": "w = 1 - Up", "up": "w = Up",
              "exp": "w = exp(Up)"}
-    return [AblationRow(WEIGHTING, name, label, {"kernel": "dog", "pixel_uncertainty": True,
-                                           "primitive_uncertainty": True, "weighting": name})
+    return [AblationRow(WEIGHTING, name, label, {**FULL_MODEL, "loss.weighting": name})
             for name, label in names.items()]
 
 
 def correction_rows() -> list[AblationRow]:
     """The full model on the raw maps and with each correction of the maps' bias."""
-    plain = {"silhouette_correction": "none", "edge_profile": "raw"}  # one correction at a time
+    plain = {"maps.silhouette_correction": "none", "maps.edge_profile": "raw"}  # one correction at a time
     rows = [("raw", "raw maps", plain),
-            ("calibrated", "shift by the detector's calibration", {**plain, "map_correction": "calibrated"}),
-            ("learned", "shift learned with the primitives", {**plain, "map_correction": "learned"}),
-            ("thin", "thinned (NMS + narrow profile)", {**plain, "edge_profile": "thin"}),
-            ("profile", "profile loss (render blurred to the band)", {**plain, "edge_profile": "profile"}),
-            ("outline", "outline pulled onto the masks", {**plain, "silhouette_correction": "measured"}),
+            ("calibrated", "shift by the detector's calibration", {**plain, "maps.correction": "calibrated"}),
+            ("learned", "shift learned with the primitives", {**plain, "maps.correction": "learned"}),
+            ("thin", "thinned (NMS + narrow profile)", {**plain, "maps.edge_profile": "thin"}),
+            ("profile", "profile loss (render blurred to the band)",
+             {**plain, "maps.edge_profile": "profile"}),
+            ("outline", "outline pulled onto the masks", {**plain, "maps.silhouette_correction": "measured"}),
             ("outline+profile", "outline pulled onto the masks + profile loss",
-             {"silhouette_correction": "measured", "edge_profile": "profile"})]
-    return [AblationRow(CORRECTIONS, key, label, {"kernel": "dog", "pixel_uncertainty": True,
-                                                  "primitive_uncertainty": True, **changes})
-            for key, label, changes in rows]
+             {"maps.silhouette_correction": "measured", "maps.edge_profile": "profile"})]
+    return [AblationRow(CORRECTIONS, key, label, {**FULL_MODEL, **changes}) for key, label, changes in rows]
 
 
 def select_rows(tables: tuple[str, ...], keys: tuple[str, ...] | None = None) -> list[AblationRow]:
@@ -95,24 +97,26 @@ def select_rows(tables: tuple[str, ...], keys: tuple[str, ...] | None = None) ->
 
 def effective_config(config: TrainConfig) -> TrainConfig:
     """The config with settings that cannot change training normalised away (for sharing runs)."""
-    if config.pixel_uncertainty and config.weighting == "one":
-        config = dataclasses.replace(config, pixel_uncertainty=False)
-    if not config.pixel_uncertainty:
-        config = dataclasses.replace(config, weighting=TrainConfig.weighting)
-    if not config.primitive_uncertainty:
-        config = dataclasses.replace(config, keep_ratio=TrainConfig.keep_ratio)
-    if config.kernel == "gaussian":
-        config = dataclasses.replace(config, k_init=TrainConfig.k_init, lr_k=TrainConfig.lr_k)
+    defaults = TrainConfig()
+    if config.loss.pixel_uncertainty and config.loss.weighting == "one":
+        config = with_values(config, {"loss.pixel_uncertainty": False})
+    if not config.loss.pixel_uncertainty:
+        config = with_values(config, {"loss.weighting": defaults.loss.weighting})
+    if not config.strategy.primitive_uncertainty:
+        config = with_values(config, {"strategy.keep_ratio": defaults.strategy.keep_ratio})
+    if config.model.kernel == "gaussian":
+        config = with_values(config, {"init.k": defaults.init.k, "schedule.lr_k": defaults.schedule.lr_k})
     return config
 
 
 def run_name(config: TrainConfig) -> str:
     """A folder name for a run, from the components it uses."""
-    parts = [config.kernel, f"pix-{config.weighting}" if config.pixel_uncertainty else "nopix",
-             "fisher" if config.primitive_uncertainty else "nofisher"]
-    parts += [config.map_correction] if config.map_correction != "none" else []
-    parts += [config.edge_profile] if config.edge_profile not in ("auto", "raw") else []
-    parts += {"none": [], "measured": ["outline"], "auto": ["outline-auto"]}[config.silhouette_correction]
+    maps, loss = config.maps, config.loss
+    parts = [config.model.kernel, f"pix-{loss.weighting}" if loss.pixel_uncertainty else "nopix",
+             "fisher" if config.strategy.primitive_uncertainty else "nofisher"]
+    parts += [maps.correction] if maps.correction != "none" else []
+    parts += [maps.edge_profile] if maps.edge_profile not in ("auto", "raw") else []
+    parts += {"none": [], "measured": ["outline"], "auto": ["outline-auto"]}[maps.silhouette_correction]
     return "_".join(parts)
 
 
@@ -143,7 +147,7 @@ def _run_rows(rows: list[AblationRow], scene_path: Path, out: Path, preset_name:
               progress: bool) -> list[dict]:
     results = []
     for row in rows:
-        config = effective_config(dataclasses.replace(base, **row.changes))
+        config = effective_config(with_values(base, row.changes))
         folder = out / run_name(config)
         run = RunFolder(folder, scene_path.resolve(), preset_name, config)
         try:

@@ -11,7 +11,7 @@ import numpy as np
 import torch
 
 from edgedog.builtin.scene import render_view
-from edgedog.edges.registry import PIDINET_VARIANTS, WEIGHT_FREE, make_detector, pidinet_available
+from edgedog.edges.registry import available_detectors, make_detector
 from edgedog.synthetic.cameras import orbit_cameras
 
 
@@ -26,9 +26,7 @@ def bench_image(size: int) -> np.ndarray:
 
 def run(size: int = 800, repeats: int = 3, weights: Path | None = None) -> dict:
     """Seconds per megapixel of every detector available (PiDiNet when its weights are found)."""
-    names = sorted(WEIGHT_FREE)
-    if pidinet_available(weights):
-        names += sorted(PIDINET_VARIANTS)
+    names = available_detectors(weights)
     image = bench_image(size)
     megapixels = size * size / 1e6
     results = {}

@@ -12,6 +12,7 @@ from edgedog.bench.ablation import train_and_extract
 from edgedog.bench.tables import cell
 from edgedog.errors import InputError
 from edgedog.files import atomic_write_bytes, atomic_write_json, read_json
+from edgedog.settings import with_values
 from edgedog.train.config import TrainConfig
 from edgedog.train.layered import (
     LayeredRun,
@@ -60,14 +61,14 @@ def _layers_bench(scene_path: Path, out: Path, preset_name: str, base: TrainConf
     """`run_layers_bench` under the lock of `out`."""
     from edgedog.scenes import load_scene
 
-    scene = load_scene(scene_path.resolve(), downscale=base.downscale)
+    scene = load_scene(scene_path.resolve(), downscale=base.maps.downscale)
     check_level_maps(levels, scene.detectors)
     run = layered_run(out, scene_path, preset_name, base, levels)
     train_layered(run, scene, progress=progress)
     report = extract_layered(run, scene)
     rows = [_row(name, s["primitives"], s) for name, s in report["selections"].items()]
     finest = levels[-1]
-    direct_config = dataclasses.replace(base, detector=finest.detector, map_floor=finest.floor)
+    direct_config = with_values(base, {"maps.detector": finest.detector, "maps.floor": finest.floor})
     log, direct = train_and_extract(RunFolder(out / DIRECT, run.scene, preset_name, direct_config), progress)
     rows.append(_row(f"direct ({finest.name} maps)", log["final_primitives"], direct))
     results = {"scene": str(run.scene), "preset": preset_name,

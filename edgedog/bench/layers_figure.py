@@ -74,7 +74,7 @@ def render_layers_figure(run: LayeredRun, scene: Scene, out: Path, view: int = 0
     camera = camera.scaled(size, round(camera.height * size / camera.width))
     stack = read_stack(run.layer_dir(len(run.levels) - 1))
     camera = framed(camera, stack.model.means.detach().double().numpy())
-    raster = RasterConfig(kernel=run.base.kernel, k_activation=run.base.k_activation)
+    raster = RasterConfig(kernel=run.base.model.kernel, k_activation=run.base.model.k_activation)
     ctx = offscreen_context()
     target = OffscreenTarget(ctx, camera.width, camera.height)
     splats, lines = SplatRenderer(ctx), LineRenderer(ctx)

@@ -22,6 +22,7 @@ from typing import TYPE_CHECKING
 from edgedog.bench.tables import cell
 from edgedog.errors import ConfigError, InputError
 from edgedog.files import atomic_write_bytes, atomic_write_json, read_json
+from edgedog.settings import with_values
 from edgedog.train.config import TrainConfig, preset, with_epochs, with_overrides
 from edgedog.train.run_folder import RunFolder, RunLock, write_run
 
@@ -53,8 +54,8 @@ class Budget:
         the epochs of whatever preview has."""
         config = with_overrides(preset(self.preset), overrides)
         if self.downscale is not None:
-            config = dataclasses.replace(config, downscale=self.downscale)
-        return with_epochs(config, max(1, round(config.epochs * self.epoch_share)))
+            config = with_values(config, {"maps.downscale": self.downscale})
+        return with_epochs(config, max(1, round(config.schedule.epochs * self.epoch_share)))
 
 
 BUDGETS = {b.name: b for b in (
@@ -63,9 +64,9 @@ BUDGETS = {b.name: b for b in (
     Budget("preview", "preview", "preset preview (100 epochs at 1/2 resolution)"),
     Budget("preview-d1", "preview", "preset preview at full resolution", downscale=1),
     Budget("fast", "fast", "preset fast (200 epochs at full resolution)"),
-    Budget("paper", "paper", "preset paper (400 epochs at full resolution)"),
+    Budget("full", "full", "preset full (400 epochs at full resolution)"),
 )}
-DEFAULT_BUDGETS = "preview-d4,preview,fast,paper"
+DEFAULT_BUDGETS = "preview-d4,preview,fast,full"
 
 
 def parse_budgets(text: str) -> list[Budget]:
@@ -166,25 +167,27 @@ def _train_budget(plan: RunPlan, budget: str, evals: int, progress: bool) -> Bud
     """`run_budget` under the run folder's lock."""
     from tqdm import tqdm
 
+    from edgedog.groundtruth import ground_truth_for
     from edgedog.train.lifecycle import NEW, load_run_scene
     from edgedog.train.trainer import CHECKPOINT, Trainer
 
     run = plan.run
-    eval_epochs = evaluation_epochs(run.config.epochs, evals)
+    eval_epochs = evaluation_epochs(run.config.schedule.epochs, evals)
     result = read_result(run.path, eval_epochs)
     if result is not None and result.finished:
         return result
     scene = load_run_scene(run.scene, run.config)
-    if scene.ground_truth is None:
+    if ground_truth_for(scene.root) is None:
         raise InputError(run.scene, "the speed-error bench needs a scene with ground truth")
     if plan.state == NEW:
         write_run(run)
     trainer = Trainer(scene, run.config, run.path, progress)
     if result is None:
         camera = scene.camera(0)
-        result = BudgetResult(budget, run.config.epochs, f"{camera.width}x{camera.height}", eval_epochs, [])
+        result = BudgetResult(budget, run.config.schedule.epochs, f"{camera.width}x{camera.height}",
+                              eval_epochs, [])
     recorded = {p.epoch for p in result.points}
-    with tqdm(total=run.config.epochs * len(scene), initial=trainer.step_index, unit="step",
+    with tqdm(total=run.config.schedule.epochs * len(scene), initial=trainer.step_index, unit="step",
               disable=not progress, desc=budget) as bar:
         for epoch in (e for e in eval_epochs if e not in recorded):
             if trainer.epoch > epoch:

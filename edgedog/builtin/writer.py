@@ -8,7 +8,7 @@
                                     (the edge map), OpenGL camera-to-world `transform_matrix` and
                                     `camera_intrinsics`; with pose noise also the
                                     `true_transform_matrix` the image was rendered with
-    <scene>/gt/<scene>_0.005.ply    ground-truth points (what `find_ground_truth` reads)
+    <scene>/gt/<scene>_0.005.ply    ground-truth points (what `ground_truth_for` finds)
     <scene>/gt/<scene>_curves.json  the exact curves they were sampled from
     <scene>/edgedog_scene.json      how the scene was made: shape, seed, dimensions, options
 

@@ -4,12 +4,14 @@ from __future__ import annotations
 
 import argparse
 import json
+import typing
 from pathlib import Path
 
 from edgedog.bench.ablation import TABLES, select_rows
 from edgedog.errors import ConfigError
 from edgedog.files import atomic_write_json
-from edgedog.train.config import MAX_SEED, PRESETS, Range
+from edgedog.settings import Range
+from edgedog.train.config import DEFAULT_PRESET, MAX_SEED, PRESETS, Kernel
 
 MAX_SIZE = 4096
 """Image width and height in px: a 4K view (the datasets' largest are 1600 px)."""
@@ -47,7 +49,7 @@ def add_parser(subparsers) -> None:
     raster.add_argument("--views", type=_integer(1, MAX_VIEWS), default=50)
     raster.add_argument("--reference-views", type=_integer(1, MAX_VIEWS), default=1,
                         help="views timed with the slow torch reference (at most --views)")
-    raster.add_argument("--kernel", choices=("dog", "gaussian"), default="dog")
+    raster.add_argument("--kernel", choices=typing.get_args(Kernel), default="dog")
     raster.add_argument("--seed", type=_integer(0, MAX_SEED), default=0)
     raster.add_argument("--json", type=Path, default=None, help="also write the result here")
     raster.set_defaults(run=run_raster)
@@ -68,7 +70,7 @@ def add_parser(subparsers) -> None:
                     "runs in OUT are reused, unfinished ones resumed.")
     ablation.add_argument("scene", type=Path, help="scene folder with ground truth")
     ablation.add_argument("--out", type=Path, required=True, help="folder for the runs and the tables")
-    ablation.add_argument("--preset", choices=PRESETS, default="paper")
+    ablation.add_argument("--preset", choices=PRESETS, default=DEFAULT_PRESET)
     ablation.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                           help="override a training setting for every row (repeatable)")
     ablation.add_argument("--tables", default="components,weighting",

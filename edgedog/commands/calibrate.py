@@ -86,7 +86,9 @@ def run(args: argparse.Namespace) -> None:
             raise ConfigError("--scene needs --maps NAME: which of the scene's edge maps to measure")
         scene = open_scene(args.scene, args)
         measurement = calibrate.measure_scene_maps(scene, args.maps, progress=True)
-        lines = [f"{scene.root}: '{args.maps}' maps against {scene.ground_truth.description}",
+        from edgedog.groundtruth import ground_truth_for
+
+        lines = [f"{scene.root}: '{args.maps}' maps against {ground_truth_for(scene.root).description}",
                  *_measurement_lines(measurement)]
         _print_and_write(lines, measurement.to_dict(), args.json)
         return

@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 
 from edgedog.commands.scene_args import add_scene_options, open_scene
-from edgedog.edges.registry import detector_names
+from edgedog.edges.registry import detectors_help
 
 
 def add_parser(subparsers) -> None:
@@ -14,11 +14,12 @@ def add_parser(subparsers) -> None:
         "edges", help="compute pseudo-edge maps with a 2D detector (cached beside the scene)",
         description="Compute the scene's pseudo-edge maps once and cache them, keyed by detector, "
                     "weights and resolution. Maps a scene ships with are used as they are unless "
-                    "--recompute.")
+                    "--recompute.",
+        epilog="detectors:\n" + "\n".join(f"  {line}" for line in detectors_help().splitlines()),
+        formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("scene", help="scene folder")
     parser.add_argument("--detector", default="auto",
-                        help=f"{', '.join(detector_names())}; PiDiNet names take :side1 ... :side4 "
-                             "(default auto: PiDiNet when its weights are found, else canny)")
+                        help="one of the detectors listed below (default: auto)")
     parser.add_argument("--weights", type=Path, default=None,
                         help="PiDiNet weights file or folder (default: $EDGEDOG_PIDINET)")
     parser.add_argument("--recompute", action="store_true", help="ignore cached or provided maps")

@@ -10,7 +10,7 @@ import numpy as np
 from edgedog.curve_files import read_edges
 from edgedog.errors import InputError
 from edgedog.files import atomic_write_json
-from edgedog.groundtruth import read_points_ply
+from edgedog.groundtruth import ground_truth_for, read_points_ply
 from edgedog.metrics import SAMPLE_SPACING, VOXELS_PER_AXIS, EdgeMetrics, evaluate
 from edgedog.scenes import load_scene
 
@@ -51,9 +51,10 @@ def score_file(pred: Path, gt_points, world_to_gt=None, voxelize: bool = True) -
 def run(args: argparse.Namespace) -> None:
     if args.scene is not None:
         scene = load_scene(args.scene)
-        if scene.ground_truth is None:
+        ground_truth = ground_truth_for(scene.root)
+        if ground_truth is None:
             raise InputError(scene.root, "no ground truth found beside the scene; pass --gt POINTS.ply")
-        gt_points, gt_source = scene.ground_truth.load(), scene.ground_truth.description
+        gt_points, gt_source = ground_truth.load(), ground_truth.description
         world_to_gt = scene.world_to_gt if args.frame == "world" else None
     else:
         gt_points, gt_source, world_to_gt = read_points_ply(args.gt), str(args.gt), None

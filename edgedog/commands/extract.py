@@ -29,7 +29,7 @@ def run(args: argparse.Namespace) -> None:
     from edgedog.curves.config import ExtractConfig
     from edgedog.curves.extract import OUTPUTS, run_scene
     from edgedog.curves.report import REPORT, extract_with_report
-    from edgedog.train.config import with_overrides
+    from edgedog.settings import with_overrides
     from edgedog.train.layered import is_layered
     from edgedog.train.run_folder import RunLock, is_run_folder
 
@@ -54,6 +54,6 @@ def extract_layered_run(path: Path, config) -> None:
     from edgedog.train.layered import REPORT, extract_layered, read_layered
 
     run = read_layered(path)
-    report = extract_layered(run, load_scene(run.scene, downscale=run.base.downscale), config)
+    report = extract_layered(run, load_scene(run.scene, downscale=run.base.maps.downscale), config)
     print_layers_report(report)
     print(f"wrote {path / 'curves'}/NAME/ for {', '.join(report['selections'])} and {path / REPORT}")

@@ -7,6 +7,7 @@ import argparse
 import numpy as np
 
 from edgedog.commands.scene_args import add_scene_options, open_scene
+from edgedog.groundtruth import ground_truth_for
 from edgedog.scenes import Scene
 
 
@@ -53,11 +54,12 @@ def summary(scene: Scene) -> str:
         rows.append(("damaged", f"{path}: {problem}"))
     if scene.sfm_points is not None:
         rows.append(("sfm points", f"{len(scene.sfm_points)}"))
-    if scene.ground_truth is None:
+    ground_truth = ground_truth_for(scene.root)
+    if ground_truth is None:
         rows.append(("ground truth", "none"))
     else:
-        points = scene.ground_truth.load()
-        rows.append(("ground truth", f"{len(points)} edge points from {scene.ground_truth.description}"))
+        points = ground_truth.load()
+        rows.append(("ground truth", f"{len(points)} edge points from {ground_truth.description}"))
     width = max(len(name) for name, _ in rows)
     return "\n".join(f"{name:<{width}}  {value}" for name, value in rows)
 

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 from pathlib import Path
 
 import numpy as np
@@ -16,8 +15,7 @@ from edgedog.files import atomic_write
 
 
 def add_parser(subparsers) -> None:
-    from edgedog.init import INIT_METHODS
-    from edgedog.train.config import TrainConfig
+    from edgedog.init import DEFAULTS, INIT_METHODS
 
     parser = subparsers.add_parser(
         "init", help="initial points: SfM triangulation with the known poses, or a uniform cube",
@@ -25,40 +23,55 @@ def add_parser(subparsers) -> None:
                     "used and why: the scene's SfM points, SIFT points triangulated with the known "
                     "cameras and kept on pseudo edges, or EdgeGaussians' uniform cube.")
     parser.add_argument("scene", help="scene folder")
-    parser.add_argument("--method", choices=INIT_METHODS, default="auto")
+    parser.add_argument("--method", choices=INIT_METHODS, default=DEFAULTS.method,
+                        help=f"how the points are found (default {DEFAULTS.method}, as `edgedog train`)")
     parser.add_argument("--detector", default=None,
                         help="keep only points that project onto this detector's edge maps in 2+ views")
     parser.add_argument("--min-points", type=int, default=500, help="fewest points 'auto' accepts")
-    parser.add_argument("--uniform-count", type=int, default=TrainConfig.init_count,
-                        help=f"points of the uniform cube (default {TrainConfig.init_count}, as "
-                             "`edgedog train`; EdgeGaussians uses 2500)")
-    parser.add_argument("--uniform-side", type=float, default=None,
-                        help="edge of the uniform cube (default: the scene bounds' largest extent; "
-                             "EdgeGaussians uses 1.1 for ABC objects)")
+    parser.add_argument("--uniform-count", type=int, default=DEFAULTS.count,
+                        help=f"points of the uniform cube (default {DEFAULTS.count}, as `edgedog train`; "
+                             "EdgeGaussians uses 2500)")
+    parser.add_argument("--uniform-side", type=_side, default=DEFAULTS.side,
+                        help=f"edge of the uniform cube, or 'none' for the scene bounds' largest extent "
+                             f"(default {DEFAULTS.side}, as `edgedog train` and EdgeGaussians for ABC)")
+    parser.add_argument("--edge-threshold", type=float, default=DEFAULTS.edge_threshold,
+                        help="edge-map value a kept point lands on in 2+ views (default "
+                             f"{DEFAULTS.edge_threshold}, as `edgedog train`)")
     parser.add_argument("--out", type=Path, default=None, help="write the points as a PLY (x, y, z, scale)")
     add_scene_options(parser)
     parser.set_defaults(run=run)
 
 
-def check_options(args: argparse.Namespace) -> None:
-    """ConfigErrors naming the option, before the scene is opened."""
-    from edgedog.train.config import MAX_PRIMITIVES
+def _side(text: str) -> float | None:
+    """--uniform-side: a number, or 'none' (the scene bounds' largest extent)."""
+    return None if text.strip().lower() == "none" else float(text)
 
-    if not 1 <= args.uniform_count <= MAX_PRIMITIVES:
-        raise ConfigError(f"--uniform-count {args.uniform_count}: must be between 1 and {MAX_PRIMITIVES}")
-    if args.uniform_side is not None and not (math.isfinite(args.uniform_side) and args.uniform_side > 0):
-        raise ConfigError(f"--uniform-side {args.uniform_side}: must be a positive number")
+
+def settings_of(args: argparse.Namespace):
+    """The init settings the options give: ConfigErrors naming the option, before the scene is
+    opened."""
+    from edgedog.init import InitSettings
+
     if args.min_points < 0:
         raise ConfigError(f"--min-points {args.min_points}: must not be negative")
+    options = {"method": "--method", "count": "--uniform-count", "side": "--uniform-side",
+               "edge_threshold": "--edge-threshold"}
+    values = {"method": args.method, "count": args.uniform_count, "side": args.uniform_side,
+              "edge_threshold": args.edge_threshold}
+    for name, value in values.items():
+        try:
+            InitSettings(**{name: value})
+        except ConfigError as error:
+            raise ConfigError(f"{options[name]} {value}: {error}") from None
+    return InitSettings(**values)
 
 
 def run(args: argparse.Namespace) -> None:
     from edgedog.init import initialize
 
-    check_options(args)
+    settings = settings_of(args)
     scene = open_scene(args.scene, args)
-    points = initialize(scene, args.method, detector=args.detector, min_points=args.min_points,
-                        uniform_count=args.uniform_count, uniform_side=args.uniform_side)
+    points = initialize(scene, settings, detector=args.detector, min_points=args.min_points)
     print(json.dumps({"method": points.method, "points": len(points), **points.report}, indent=2,
                      default=str))
     if args.out is not None:

@@ -8,7 +8,7 @@ from pathlib import Path
 
 from edgedog.app import MIN_SIZE
 from edgedog.files import default_cache
-from edgedog.train.config import PRESETS
+from edgedog.train.config import PRESETS, presets_help
 
 MAX_SIZE = 16384
 """A side longer than this is no screen's (and no GL framebuffer's)."""
@@ -34,7 +34,7 @@ def add_parser(subparsers) -> None:
     parser.add_argument("path", nargs="?", type=Path, metavar="SCENE | RUN",
                         help="scene folder, or run folder to resume (default: the built-in scene)")
     parser.add_argument("--preset", choices=PRESETS, default="preview",
-                        help="settings of new runs (default preview: 100 epochs at half resolution)")
+                        help=f"settings of new runs (default preview). {presets_help()}")
     parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                         help="override a setting of edgedog.train.config.TrainConfig for new runs "
                              "(repeatable; a resumed run keeps its own)")

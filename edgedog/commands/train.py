@@ -8,7 +8,7 @@ from pathlib import Path
 
 from edgedog.commands.reports import print_layers_report, print_report
 from edgedog.errors import InputError
-from edgedog.train.config import PRESETS
+from edgedog.train.config import DEFAULT_PRESET, PRESETS, presets_help
 
 
 def add_parser(subparsers) -> None:
@@ -22,10 +22,11 @@ def add_parser(subparsers) -> None:
     parser.add_argument("scene", help="scene folder")
     parser.add_argument("--out", type=Path, required=True, help="run folder")
     parser.add_argument("--preset", choices=PRESETS, default=None,
-                        help="paper (default): EdgeGaussians' 400 epochs at full resolution; fast: 200 "
-                             "at full; preview: 100 at half")
+                        help=f"the starting settings (default {DEFAULT_PRESET}). {presets_help()}")
     parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                        help="override a setting of edgedog.train.config.TrainConfig (repeatable)")
+                        help="override a setting of edgedog.train.config.TrainConfig (repeatable): KEY "
+                             "is SECTION.FIELD (loss.weighting=exp), or a field one section has "
+                             "(epochs=200)")
     parser.add_argument("--layers", default=None, metavar="L0,L1,...",
                         help="multi-granularity: train these levels bottom up, each layer fitted to "
                              "its own maps with the layers below fixed (RUN/L0, RUN/L1, ...), then "
@@ -43,7 +44,7 @@ def add_parser(subparsers) -> None:
 
 
 def resume_hint(args: argparse.Namespace) -> str:
-    """What to type after Ctrl-C: the last checkpoint (every `checkpoint_every` epochs) is kept."""
+    """What to type after Ctrl-C: the last checkpoint (every `run.checkpoint_every` epochs) is kept."""
     return f"continue from the last checkpoint with: edgedog train {args.scene} --out {args.out} --resume"
 
 
@@ -57,14 +58,14 @@ def run(args: argparse.Namespace) -> None:
         reject_settings_on_resume(args)
         plan = plan_run(args.out, args.scene, policy=CONTINUE)
     else:
-        plan = plan_run(args.out, args.scene, args.preset or "paper", _config(args), START)
+        plan = plan_run(args.out, args.scene, args.preset or DEFAULT_PRESET, _config(args), START)
     train_and_report(plan, args.quiet)
 
 
 def _config(args: argparse.Namespace):
     from edgedog.train.config import preset, with_overrides
 
-    return with_overrides(preset(args.preset or "paper"), args.overrides)
+    return with_overrides(preset(args.preset or DEFAULT_PRESET), args.overrides)
 
 
 def reject_settings_on_resume(args: argparse.Namespace) -> None:
@@ -125,7 +126,7 @@ def run_layered(args: argparse.Namespace) -> None:
         levels = resolve_levels(names, args.levels)
         scene = load_run_scene(args.scene, config)
         check_level_maps(levels, scene.detectors)
-        run = LayeredRun(args.out, scene.root, args.preset or "paper", config, levels)
+        run = LayeredRun(args.out, scene.root, args.preset or DEFAULT_PRESET, config, levels)
     with RunLock.acquire(args.out):
         if not args.resume:
             check_new_run_folder(args.out)

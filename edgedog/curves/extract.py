@@ -100,9 +100,11 @@ def run_scene(run_dir: Path, maps: bool = True) -> tuple[Scene, str]:
     if not (isinstance(log, dict) and all(isinstance(log.get(key), str) for key in ("scene", "detector"))):
         raise InputError(path, "expected 'scene' and 'detector' strings (from edgedog train)")
     config = log.get("config", {})
-    downscale = config.get("downscale", 1) if isinstance(config, dict) else None
+    # The config by section (run format 3) or flat (runs written before the sections).
+    map_settings = config.get("maps", config) if isinstance(config, dict) else None
+    downscale = map_settings.get("downscale", 1) if isinstance(map_settings, dict) else None
     if type(downscale) is not int or downscale < 1:
-        raise InputError(path, f"config.downscale must be a positive integer, got {downscale!r}")
+        raise InputError(path, f"config.maps.downscale must be a positive integer, got {downscale!r}")
     scene = load_scene(log["scene"], downscale=downscale)
     if maps:
         attach_edge_maps(scene, log["detector"])

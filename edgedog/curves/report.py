@@ -12,18 +12,18 @@ from edgedog.curve_files import EdgeCurves
 from edgedog.curves.config import ExtractConfig, to_dict
 from edgedog.curves.extract import RunExtraction, extract_run
 from edgedog.files import atomic_write_json
+from edgedog.groundtruth import GroundTruthSource, ground_truth_for
 from edgedog.metrics import EdgeMetrics, evaluate
 from edgedog.scenes import Scene
 
 REPORT = "extract.json"
 
 
-def score_extraction(result: RunExtraction, scene: Scene) -> dict[str, EdgeMetrics]:
-    """Scores of the filtered points and of the curves against the scene's ground truth (empty
-    when it has none; a set with nothing to score, e.g. every curve under 5 mm, is left out)."""
-    if scene.ground_truth is None:
-        return {}
-    gt = scene.ground_truth.load()
+def score_extraction(result: RunExtraction, scene: Scene,
+                     ground_truth: GroundTruthSource) -> dict[str, EdgeMetrics]:
+    """Scores of the filtered points and of the curves against the scene's ground truth (a set
+    with nothing to score, e.g. every curve under 5 mm, is left out)."""
+    gt = ground_truth.load()
     samples = {"points": EdgeCurves(points=result.points.points).transformed(scene.world_to_gt).points,
                "curves": result.curves.transformed(scene.world_to_gt).sample()}
     return {name: evaluate(points, gt) for name, points in samples.items() if len(points)}
@@ -41,8 +41,10 @@ def extract_with_report(run_dir: Path, scene: Scene, detector: str, config: Extr
     """
     result = extract_run(run_dir, config, scene, detector, layers, out_dir)
     report = {"config": to_dict(config), "counts": result.counts}
-    if scene.ground_truth is not None:
-        report["ground_truth"] = scene.ground_truth.description
-        report["metrics"] = {name: m.to_dict() for name, m in score_extraction(result, scene).items()}
+    ground_truth = ground_truth_for(scene.root)
+    if ground_truth is not None:
+        report["ground_truth"] = ground_truth.description
+        scores = score_extraction(result, scene, ground_truth)
+        report["metrics"] = {name: m.to_dict() for name, m in scores.items()}
     atomic_write_json(Path(out_dir or run_dir) / REPORT, report)
     return result, report

@@ -31,6 +31,7 @@ from edgedog.curve_files import EdgeCurves
 from edgedog.edges.detector import EdgeDetector
 from edgedog.errors import ConfigError, InputError
 from edgedog.files import atomic_write_json, default_cache, read_json
+from edgedog.groundtruth import ground_truth_for
 from edgedog.scenes import Scene
 from edgedog.scenes.camera import Camera
 from edgedog.synthetic.cameras import orbit_cameras
@@ -558,13 +559,14 @@ def measure_scene_maps(scene: Scene, maps_name: str, bins: int = ORIENTATION_BIN
     Raises:
         InputError when the scene has no ground truth or no maps named `maps_name`.
     """
-    if scene.ground_truth is None:
+    ground_truth = ground_truth_for(scene.root)
+    if ground_truth is None:
         raise InputError(scene.root, "no ground truth beside the scene: nothing to measure its maps against")
     if maps_name not in scene.detectors:
         available = ", ".join(scene.detectors) or "none"
         raise InputError(scene.root, f"no '{maps_name}' edge maps (available: {available})")
     gt_to_world = np.linalg.inv(scene.world_to_gt)  # may hold a scale: not a rigid inverse
-    points = EdgeCurves(points=scene.ground_truth.load()).transformed(gt_to_world).points
+    points = EdgeCurves(points=ground_truth.load()).transformed(gt_to_world).points
     tangents = curve_tangents(points)
     maps, projections = [], []
     for index in tqdm(range(len(scene)), desc=f"maps ({maps_name})", unit="view", disable=not progress):

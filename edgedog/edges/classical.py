@@ -40,19 +40,25 @@ class SobelDetector(EdgeDetector):
 
 class CannyDetector(EdgeDetector):
     """Canny's thin, binary edges, softened by a Gaussian of `soften_sigma` pixels so that the
-    map has the smooth profile the photometric loss needs (peak 1 on the edge)."""
+    map has the smooth profile the photometric loss needs (peak 1 on the edge).
+
+    Args:
+        low, high: the hysteresis thresholds, grey levels.
+        blur_sigma: the Gaussian (pixels) the grey image is smoothed with before Canny.
+        soften_sigma: the Gaussian (pixels) the binary edges are softened with.
+    """
 
     name = "canny"
 
-    def __init__(self, low: int = 50, high: int = 150, soften_sigma: float = 1.0):
-        self.low, self.high, self.soften_sigma = low, high, soften_sigma
+    def __init__(self, low: int = 50, high: int = 150, blur_sigma: float = 1.0, soften_sigma: float = 1.0):
+        self.low, self.high, self.blur_sigma, self.soften_sigma = low, high, blur_sigma, soften_sigma
 
     @property
     def fingerprint(self) -> str:
-        return f"canny-{self.low}-{self.high}-s{self.soften_sigma:g}"
+        return f"canny-{self.low}-{self.high}-b{self.blur_sigma:g}-s{self.soften_sigma:g}"
 
     def detect(self, image: np.ndarray) -> np.ndarray:
-        edges = cv2.Canny(cv2.GaussianBlur(_gray_u8(image), (0, 0), 1.0), self.low, self.high)
+        edges = cv2.Canny(cv2.GaussianBlur(_gray_u8(image), (0, 0), self.blur_sigma), self.low, self.high)
         soft = cv2.GaussianBlur(edges.astype(np.float32) / 255.0, (0, 0), self.soften_sigma)
         peak = 1.0 / (2 * np.pi * self.soften_sigma**2) ** 0.5  # a 1-px line's blurred peak
         return np.clip(soft / peak, 0.0, 1.0).astype(np.float32)

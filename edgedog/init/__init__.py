@@ -7,28 +7,32 @@ own SfM points, or EdgeGaussians' uniform cube, chosen automatically.
 from __future__ import annotations
 
 import tempfile
+import typing
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from edgedog.errors import ConfigError, InputError
+from edgedog.errors import InputError
 from edgedog.init.points import InitialPoints, nearest_neighbour_scales
+from edgedog.init.settings import InitMethod, InitSettings
 from edgedog.init.triangulate import keep_on_edges, triangulate_known_poses
 from edgedog.init.uniform import uniform_init
 from edgedog.scenes.common import look_at_point
 from edgedog.scenes.scene import Scene
 
-INIT_METHODS = ("auto", "triangulate", "sfm-points", "uniform")
+INIT_METHODS = typing.get_args(InitMethod)
+DEFAULTS = InitSettings()
+"""The defaults of `edgedog init` and of training's `init` section."""
 
 
-def uniform_for_scene(scene: Scene, count: int = 2500, side: float | None = None,
+def uniform_for_scene(scene: Scene, count: int = DEFAULTS.count, side: float | None = DEFAULTS.side,
                       seed: int = 0) -> InitialPoints:
     """EdgeGaussians' uniform cube, centred on the point an object-centric capture looks at, else
     on the scene's bounds (metadata boxes such as EMAP's [-1, 1]^3 are often loose and off-centre).
 
     Args:
-        side: cube edge; default the bounds' largest extent (the cube then covers the bounds).
+        side: cube edge; None: the bounds' largest extent (the cube then covers the bounds).
     """
     lo, hi = np.asarray(scene.bounds, dtype=np.float64)
     side = float(np.max(hi - lo)) if side is None else float(side)
@@ -40,7 +44,7 @@ def uniform_for_scene(scene: Scene, count: int = 2500, side: float | None = None
 
 
 def sfm_points_on_edges(scene: Scene, detector: str | None = None, min_edge_views: int = 2,
-                        edge_threshold: float = 0.3,
+                        edge_threshold: float = DEFAULTS.edge_threshold,
                         views: list[int] | None = None) -> InitialPoints:
     """The scene's own SfM points (COLMAP scenes), kept on pseudo edges like triangulated ones."""
     if scene.sfm_points is None:
@@ -51,35 +55,32 @@ def sfm_points_on_edges(scene: Scene, detector: str | None = None, min_edge_view
                          detector, edge_threshold, min_edge_views)
 
 
-def initialize(scene: Scene, method: str = "auto", workdir: Path | None = None,
+def initialize(scene: Scene, settings: InitSettings = DEFAULTS, workdir: Path | None = None,
                detector: str | None = None, min_points: int = 500, seed: int = 0, *,
-               views: list[int] | None = None, max_image_size: int = 1600,
-               uniform_count: int = 2500, uniform_side: float | None = None) -> InitialPoints:
+               views: list[int] | None = None, max_image_size: int = 1600) -> InitialPoints:
     """Initial points for a scene.
 
     Args:
         scene: the posed views.
-        method: "uniform"; "triangulate" (SIFT matches triangulated with the known cameras);
-            "sfm-points" (a COLMAP scene's own points); or "auto": the scene's SfM points when
-            it has at least `min_points` of them on edges, else triangulation when that keeps at
-            least `min_points`, else uniform (renders with few features).
+        settings: the method, the uniform cube (count, side) and the edge threshold of the
+            points kept. Methods: "uniform"; "triangulate" (SIFT matches triangulated with the
+            known cameras); "sfm-points" (a COLMAP scene's own points); or "auto": the scene's
+            SfM points when it has at least `min_points` of them on edges, else triangulation
+            when that keeps at least `min_points`, else uniform (renders with few features).
         workdir: where COLMAP's database and model go; a temporary folder (removed) if None.
         detector: pseudo-edge maps that points must project onto (None: keep all points).
         min_points: fewest points "auto" accepts before falling back.
         seed: seed of the uniform sampling.
         views: view indices used for triangulation and edge filtering (default all).
         max_image_size: longest image side for SIFT.
-        uniform_count, uniform_side: the uniform cube's point count and edge (default: the
-            bounds' largest extent, centred on the bounds).
     Returns:
         InitialPoints whose `report` holds "requested", the chosen "method", a "reason" and,
         for "auto", every "attempts" made with its counts.
     """
-    if method not in INIT_METHODS:
-        raise ConfigError(f"init method must be one of {', '.join(INIT_METHODS)}, got {method!r}")
+    method, threshold = settings.method, settings.edge_threshold
 
     def uniform(reason: str, attempts: list[dict[str, Any]]) -> InitialPoints:
-        result = uniform_for_scene(scene, uniform_count, uniform_side, seed)
+        result = uniform_for_scene(scene, settings.count, settings.side, seed)
         result.report.update({"requested": method, "reason": reason, "attempts": attempts})
         return result
 
@@ -90,12 +91,12 @@ def initialize(scene: Scene, method: str = "auto", workdir: Path | None = None,
     if method == "uniform":
         return uniform("requested", [])
     if method == "sfm-points":
-        result = sfm_points_on_edges(scene, detector, views=views)
+        result = sfm_points_on_edges(scene, detector, edge_threshold=threshold, views=views)
         return finish(result, "requested", [])
 
     attempts: list[dict[str, Any]] = []
     if method == "auto" and scene.sfm_points is not None:
-        result = sfm_points_on_edges(scene, detector, views=views)
+        result = sfm_points_on_edges(scene, detector, edge_threshold=threshold, views=views)
         attempts.append({"method": "sfm-points", "points": len(result)})
         if len(result) >= min_points:
             return finish(result, f"the scene's SfM points give {len(result)} points "
@@ -109,7 +110,7 @@ def initialize(scene: Scene, method: str = "auto", workdir: Path | None = None,
     with tempfile.TemporaryDirectory(prefix="edgedog-init-") as temporary:
         folder = Path(workdir) if workdir is not None else Path(temporary)
         folder.mkdir(parents=True, exist_ok=True)
-        result = triangulate_known_poses(scene, folder, detector=detector,
+        result = triangulate_known_poses(scene, folder, detector=detector, edge_threshold=threshold,
                                          max_image_size=max_image_size, views=views)
     attempts.append({"method": "triangulated", "points": len(result),
                      "triangulated": result.report["triangulated"]})
@@ -129,7 +130,9 @@ def initialize(scene: Scene, method: str = "auto", workdir: Path | None = None,
 
 
 __all__ = [
+    "DEFAULTS",
     "INIT_METHODS",
+    "InitSettings",
     "InitialPoints",
     "initialize",
     "nearest_neighbour_scales",

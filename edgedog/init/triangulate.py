@@ -18,6 +18,7 @@ import numpy as np
 
 from edgedog.errors import InputError
 from edgedog.init.points import InitialPoints, nearest_neighbour_scales
+from edgedog.init.settings import InitSettings
 from edgedog.scenes.camera import Camera
 from edgedog.scenes.colmap import COLMAP_SUFFIXES, colmap_log_level
 from edgedog.scenes.images import read_raw
@@ -29,7 +30,7 @@ SCALE_RANGE = (0.0005, 0.02)
 
 
 def edge_support(scene: Scene, points: np.ndarray, views: list[int], detector: str,
-                 threshold: float = 0.3) -> np.ndarray:
+                 threshold: float) -> np.ndarray:
     """(N,) number of `views` in which each point projects onto a pseudo edge.
 
     A point counts for a view when it lies in front of the camera, its rounded projection falls
@@ -125,7 +126,7 @@ def _known_reconstruction(database_path: Path, cameras: dict[str, Camera], image
 
 def triangulate_known_poses(scene: Scene, workdir: Path, detector: str | None = None,
                             max_image_size: int = 1600, min_edge_views: int = 2,
-                            edge_threshold: float = 0.3,
+                            edge_threshold: float = InitSettings.edge_threshold,
                             views: list[int] | None = None) -> InitialPoints:
     """Triangulate SIFT matches with the scene's cameras; optionally keep only edge points.
 

@@ -7,11 +7,11 @@ import numpy as np
 from edgedog.init.points import InitialPoints
 
 
-def uniform_init(center: np.ndarray, side: float = 1.1, count: int = 2500,
+def uniform_init(center: np.ndarray, *, side: float, count: int,
                  scale_range: tuple[float, float] = (0.004, 0.005), seed: int = 0) -> InitialPoints:
     """`count` points uniform in the axis-aligned cube of edge `side` centred on `center`.
 
-    EdgeGaussians' defaults for ABC (objects normalised to the unit cube): 2500 points in a
+    EdgeGaussians' settings for ABC (objects normalised to the unit cube): 2500 points in a
     1.1-wide cube, scales uniform in [0.004, 0.005], opacity 0.08 and random rotations (the
     last two are set by the model, not here).
 

@@ -12,7 +12,6 @@ import numpy as np
 
 from edgedog.errors import InputError
 from edgedog.files import read_json
-from edgedog.groundtruth import find_ground_truth
 from edgedog.scenes.camera import rigid_inverse
 from edgedog.scenes.common import (
     check_view_count,
@@ -56,7 +55,6 @@ def load_emap(root: Path) -> Scene:
         views=views,
         bounds=aabb,
         world_to_gt=world_to_gt,
-        ground_truth=find_ground_truth(root, root.name),
     )
 
 

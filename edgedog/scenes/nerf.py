@@ -16,7 +16,6 @@ import numpy as np
 
 from edgedog.errors import InputError
 from edgedog.files import read_json
-from edgedog.groundtruth import find_ground_truth
 from edgedog.scenes.camera import intrinsics, w2c_from_opengl_c2w
 from edgedog.scenes.common import (
     bounds_from_cameras,
@@ -94,7 +93,6 @@ def load_nerf(root: Path, split: str = "train") -> Scene:
         format="nerf",
         views=views,
         bounds=bounds_from_cameras([v.camera for v in views]),
-        ground_truth=find_ground_truth(root, root.name),
     )
 
 

@@ -1,4 +1,4 @@
-"""The one scene type every loader returns: posed views, their files, bounds, ground truth."""
+"""The one scene type every loader returns: posed views, their files, bounds."""
 
 from __future__ import annotations
 
@@ -9,7 +9,6 @@ from pathlib import Path
 import numpy as np
 
 from edgedog.errors import InputError
-from edgedog.groundtruth import GroundTruthSource
 from edgedog.scenes.camera import Camera
 from edgedog.scenes.images import Background, as_gray, as_rgb, read_raw, resize_to, to_unit_float
 
@@ -50,7 +49,6 @@ class Scene:
         views: the training views, cameras at file resolution.
         bounds: (2, 3) axis-aligned box [min, max] that holds the object, world units.
         world_to_gt: (4, 4) transform from the world frame to the ground-truth frame.
-        ground_truth: where the ground-truth edge points come from, when the scene has them.
         sfm_points: (N, 3) structure-from-motion points for initialisation, or None.
         sfm_colors: (N, 3) uint8 colours of sfm_points, or None.
         downscale: integer factor applied to images and intrinsics on load.
@@ -64,7 +62,6 @@ class Scene:
     views: list[View]
     bounds: np.ndarray
     world_to_gt: np.ndarray = field(default_factory=lambda: np.eye(4))
-    ground_truth: GroundTruthSource | None = None
     sfm_points: np.ndarray | None = None
     sfm_colors: np.ndarray | None = None
     downscale: int = 1

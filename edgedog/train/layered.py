@@ -24,7 +24,8 @@ from edgedog.errors import InputError
 from edgedog.files import atomic_write_json, read_json
 from edgedog.primitives import read_ply
 from edgedog.scenes import Scene
-from edgedog.train.config import TrainConfig, from_dict, to_dict
+from edgedog.settings import with_values
+from edgedog.train.config import DEFAULT_PRESET, PRESETS_RENAMED, TrainConfig, from_dict, is_flat, to_dict
 from edgedog.train.levels import Level
 from edgedog.train.lifecycle import is_finished
 from edgedog.train.run_folder import RUN_CONFIG, RunFolder, write_run
@@ -52,7 +53,8 @@ class LayeredRun:
 
     def layer_config(self, index: int) -> TrainConfig:
         level = self.levels[index]
-        return dataclasses.replace(self.base, detector=level.detector, map_floor=level.floor, layer=index)
+        return with_values(self.base, {"maps.detector": level.detector, "maps.floor": level.floor,
+                                       "layers.layer": index})
 
 
 def is_layered(path: Path) -> bool:
@@ -70,8 +72,10 @@ def read_layered(path: Path) -> LayeredRun:
     if not isinstance(data, dict) or not {"scene", "config", "levels"} <= data.keys():
         raise InputError(Path(path) / LAYERS_FILE, "expected 'scene', 'config' and 'levels' keys")
     levels = tuple(Level(**level) for level in data["levels"])
-    return LayeredRun(Path(path), Path(data["scene"]), data.get("preset", "paper"), from_dict(data["config"]),
-                      levels)
+    preset = data.get("preset", DEFAULT_PRESET)
+    if is_flat(data["config"]):  # written before the sections, when 'paper' named today's 'full'
+        preset = PRESETS_RENAMED.get(preset, preset)
+    return LayeredRun(Path(path), Path(data["scene"]), preset, from_dict(data["config"]), levels)
 
 
 def layer_trainers(run: LayeredRun, scene: Scene, progress: bool = True) -> Iterator[Trainer]:
@@ -102,7 +106,7 @@ def train_layered(run: LayeredRun, scene: Scene, progress: bool = True, on_layer
     (`layer_trainers`); `on_layer` is called with (index, trainer) before each layer trains."""
     for trainer in layer_trainers(run, scene, progress):
         if on_layer is not None:
-            on_layer(trainer.config.layer, trainer)
+            on_layer(trainer.config.layers.layer, trainer)
         trainer.run()
 
 

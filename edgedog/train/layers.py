@@ -82,11 +82,12 @@ class LowerLayers:
 
 def lower_layer_config(config: TrainConfig) -> TrainConfig:
     """The schedule of the lower layers while a layer above trains: every learning rate scaled
-    by `lower_lr_scale` (fine-tuning at a low rate)."""
-    s = config.lower_lr_scale
-    return dataclasses.replace(config, lr_means=config.lr_means * s, lr_scales=config.lr_scales * s,
-                               lr_opacity=config.lr_opacity * s, lr_quats=config.lr_quats * s,
-                               lr_k=config.lr_k * s)
+    by `layers.lower_lr_scale` (fine-tuning at a low rate)."""
+    s, rates = config.layers.lower_lr_scale, config.schedule
+    schedule = dataclasses.replace(rates, lr_means=rates.lr_means * s, lr_scales=rates.lr_scales * s,
+                                   lr_opacity=rates.lr_opacity * s, lr_quats=rates.lr_quats * s,
+                                   lr_k=rates.lr_k * s)
+    return dataclasses.replace(config, schedule=schedule)
 
 
 def residual_maps(lower: LowerLayers, cameras: list[RasterCamera], targets: list[torch.Tensor],

@@ -14,7 +14,8 @@ from pathlib import Path
 
 from edgedog.edges.registry import pidinet_available, require_detector
 from edgedog.errors import ConfigError
-from edgedog.train.config import MAX_LAYERS, TrainConfig, check_setting, parse_setting, setting_types
+from edgedog.settings import check_setting, parse_setting, setting_paths
+from edgedog.train.config import MAX_LAYERS, TrainConfig
 
 _NAME = re.compile(r"L(\d+)")
 
@@ -47,18 +48,18 @@ def parse_level(spec: str) -> Level:
     """'L1=pidinet' or 'L1=canny:50,150@0.3' (detector, then an optional floor after '@').
 
     The level's layer index, detector name and floor are checked as the settings they become
-    (layer, detector, map_floor); a name that is no detector's may be a scene's own maps, which
+    (layers.layer, maps.detector, maps.floor); a name that is no detector's may be a scene's own maps, which
     `check_level_maps` checks once the scene is loaded.
     """
     name, sep, rest = spec.partition("=")
     detector, _, floor = rest.partition("@")
     if not sep or not _NAME.fullmatch(name) or not detector:
         raise ConfigError(f"--level {spec!r}: expected NAME=DETECTOR[@FLOOR] with NAME L0, L1, ...")
-    kinds = setting_types(TrainConfig)
+    kinds = setting_paths(TrainConfig)
     try:
-        level = Level(name, check_setting("detector", kinds["detector"], detector),
-                      parse_setting("map_floor", kinds["map_floor"], floor) if floor else 0.0)
-        check_setting("layer", kinds["layer"], level.index)
+        level = Level(name, check_setting("maps.detector", kinds["maps.detector"], detector),
+                      parse_setting("maps.floor", kinds["maps.floor"], floor) if floor else 0.0)
+        check_setting("layers.layer", kinds["layers.layer"], level.index)
     except ConfigError as error:
         raise ConfigError(f"--level {spec!r}: {error}") from None
     return level

@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING
 
 from edgedog.errors import ConfigError, InputError
 from edgedog.files import read_json
-from edgedog.train.config import TrainConfig, for_detector, from_dict
+from edgedog.train.config import DEFAULT_PRESET, TrainConfig, for_detector, from_dict
 from edgedog.train.run_folder import (
     RUN_CONFIG,
     RunFolder,
@@ -92,7 +92,8 @@ def is_finished(path: Path) -> bool:
     try:
         config, log = read_run(path).config, read_json(path / LOG)
         detector = log["detector"]
-        return (isinstance(log, dict) and isinstance(detector, str) and len(log["history"]) == config.epochs
+        return (isinstance(log, dict) and isinstance(detector, str)
+                and len(log["history"]) == config.schedule.epochs
                 and from_dict(log["config"]) == for_detector(config, detector))
     except (ConfigError, InputError, KeyError, TypeError, ValueError):
         return False
@@ -105,11 +106,11 @@ def load_run_scene(path: str | Path, config: TrainConfig) -> Scene:
     from edgedog.edges.registry import make_detector
     from edgedog.scenes import load_scene
 
-    scene = load_scene(path, downscale=config.downscale)
+    scene = load_scene(path, downscale=config.maps.downscale)
     if len(scene) == 0:
         raise InputError(scene.root, "the scene has no views")
-    if config.detector != "auto" and config.detector not in scene.detectors:
-        make_detector(config.detector)
+    if config.maps.detector != "auto" and config.maps.detector not in scene.detectors:
+        make_detector(config.maps.detector)
     if scene.damaged:  # training reads every view's files: refuse now, not mid-run
         path, problem = next(iter(scene.damaged.items()))
         others = f" (and {len(scene.damaged) - 1} more damaged images)" if len(scene.damaged) > 1 else ""
@@ -182,7 +183,7 @@ def _refused(run: RunFolder, policy: str, error: InputError) -> RunPlan:
     return RunPlan(run, policy, REFUSED, refused_path=error.path, reason=error.problem)
 
 
-def plan_run(out: Path, scene: str | Path, preset: str = "paper", config: TrainConfig | None = None,
+def plan_run(out: Path, scene: str | Path, preset: str = DEFAULT_PRESET, config: TrainConfig | None = None,
              policy: str = START) -> RunPlan:
     """What a run of `config` (preset `preset`) on `scene` in `out` would do under `policy`;
     with CONTINUE, the run's own scene record, preset and config are the folder's (`config` is

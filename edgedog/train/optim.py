@@ -11,13 +11,14 @@ from edgedog.train.model import GROUPS, EdgeModel
 
 def learning_rates(config: TrainConfig, epoch: int) -> dict[str, float]:
     """Each group's learning rate during `epoch` (0-based)."""
-    decays = sum(epoch >= e for e in config.lr_means_decay_epochs)
+    s = config.schedule
+    decays = sum(epoch >= e for e in s.lr_means_decay_epochs)
     return {
-        "means": config.lr_means * config.lr_means_decay**decays,
-        "log_scales": config.lr_scales if epoch >= config.scales_from_epoch else 0.0,
-        "quats": config.lr_quats if epoch >= config.quats_from_epoch else 0.0,
-        "opacity_logits": config.lr_opacity if epoch >= config.opacity_from_epoch else 0.0,
-        "k_raw": config.lr_k if config.kernel == "dog" else 0.0,
+        "means": s.lr_means * s.lr_means_decay**decays,
+        "log_scales": s.lr_scales if epoch >= s.scales_from_epoch else 0.0,
+        "quats": s.lr_quats if epoch >= s.quats_from_epoch else 0.0,
+        "opacity_logits": s.lr_opacity if epoch >= s.opacity_from_epoch else 0.0,
+        "k_raw": s.lr_k if config.model.kernel == "dog" else 0.0,
     }
 
 

@@ -19,20 +19,22 @@ from pathlib import Path
 
 from edgedog.errors import ConfigError, InputError
 from edgedog.files import atomic_write_json, create_folder, read_json
-from edgedog.train.config import TrainConfig, from_dict, to_dict
+from edgedog.train.config import DEFAULT_PRESET, PRESETS_RENAMED, TrainConfig, from_dict, to_dict
 
 RUN_CONFIG = "config.json"
 LOCK_FILE = ".edgedog.lock"
 RUN_FORMAT = "edgedog-run"
-RUN_VERSION = 2
-"""Version 2 adds the format marker and the scene fingerprint; version 1 files (no marker) are
-still read."""
+RUN_VERSION = 3
+"""Version 3 writes the config by section (`{"maps": {...}, "init": {...}, ...}`) and names the
+presets anew; version 2 added the format marker and the scene fingerprint. Versions 1 and 2
+(flat configs, 'paper' for today's 'full') are still read, migrated by `from_dict` and
+`PRESETS_RENAMED`."""
 
 
 @dataclass(frozen=True)
 class RunFolder:
     """path: the run folder; scene: the scene folder; preset: the preset the config started
-    from ('paper' when a file does not say); config: the full resolved config;
+    from (DEFAULT_PRESET when a file does not say); config: the full resolved config;
     scene_fingerprint: `edgedog.scenes.fingerprint.scene_fingerprint` of the scene trained on
     (None in runs written before it was recorded)."""
 
@@ -74,9 +76,12 @@ def read_run(path: Path) -> RunFolder:
     if not isinstance(version, int) or version > RUN_VERSION:
         raise InputError(file, f"run format version {version!r} is newer than this edgedog reads "
                                f"({RUN_VERSION}); update edgedog")
-    scene, preset, fingerprint = data["scene"], data.get("preset", "paper"), data.get("scene_fingerprint")
+    scene, fingerprint = data["scene"], data.get("scene_fingerprint")
+    preset = data.get("preset", DEFAULT_PRESET)
     if not (isinstance(scene, str) and isinstance(preset, str) and isinstance(fingerprint, str | None)):
         raise InputError(file, "'scene', 'preset' and 'scene_fingerprint' must be strings")
+    if version < 3:
+        preset = PRESETS_RENAMED.get(preset, preset)
     if not isinstance(data["config"], dict):
         raise InputError(file, "'config' must be an object of settings")
     try:

@@ -67,7 +67,7 @@ class DensityStrategy:
     """Decides, at the end of each epoch, which primitives to duplicate, cull or prune."""
 
     def __init__(self, config: TrainConfig, raster: RasterConfig):
-        self.config = config
+        self.settings, self.epochs = config.strategy, config.schedule.epochs
         self.raster = raster
 
     def initial_state(self, n: int) -> StrategyState:
@@ -85,7 +85,7 @@ class DensityStrategy:
     def at_epoch_end(self, epoch: int, model: EdgeModel, optimizers: Optimizers, state: StrategyState,
                      views: EdgeViews, generator: torch.Generator, keep_ratio: float) -> list[dict]:
         """Apply the events scheduled after `epoch` (0-based); returns a log entry per event."""
-        c, events = self.config, []
+        c, events = self.settings, []
         if epoch in c.duplicate_epochs:
             events.append(self._duplicate(model, optimizers, state, generator))
         if epoch in c.cull_projection_epochs:
@@ -94,7 +94,7 @@ class DensityStrategy:
         if epoch in c.cull_opacity_epochs:
             opacity = torch.sigmoid(model.opacity_logits.detach())
             events.append(self._cull(model, optimizers, state, "opacity", opacity < c.cull_opacity_below))
-        if c.primitive_uncertainty and (epoch + 1) % c.fisher_every == 0 and epoch + 1 < c.epochs:
+        if c.primitive_uncertainty and (epoch + 1) % c.fisher_every == 0 and epoch + 1 < self.epochs:
             events.append(self._fisher_prune(model, optimizers, state, views, keep_ratio))
         for event in events:
             event["epoch"] = epoch
@@ -118,16 +118,16 @@ class DensityStrategy:
         grads = state.absgrad
         span = grads.max() - grads.min()
         normalised = (grads - grads.min()) / span if span > 0 else torch.zeros_like(grads)
-        chosen = torch.nonzero(normalised > self.config.duplicate_threshold).squeeze(1)
-        room = max(0, (self.config.max_primitives - len(model)) // self.config.duplicate_copies)
+        chosen = torch.nonzero(normalised > self.settings.duplicate_threshold).squeeze(1)
+        room = max(0, (self.settings.max_primitives - len(model)) // self.settings.duplicate_copies)
         chosen = chosen[:room]
         before = len(model)
-        copies = chosen.repeat(self.config.duplicate_copies)
+        copies = chosen.repeat(self.settings.duplicate_copies)
         # Copies keep their source's parameters, start with zero Adam moments, and move by
         # N(0, noise^2) so that they can spread along the edge.
         rows = torch.cat([torch.arange(before), copies])
         noise = torch.zeros(len(rows), 3)
-        noise[before:] = torch.randn(len(copies), 3, generator=generator) * self.config.duplicate_noise
+        noise[before:] = torch.randn(len(copies), 3, generator=generator) * self.settings.duplicate_noise
         self._apply(model, optimizers, state, rows, copies_from=before, means_noise=noise)
         return {"event": "duplicate", "before": before, "after": len(model)}
 
@@ -135,7 +135,7 @@ class DensityStrategy:
         before = len(model)
         self._apply(model, optimizers, state, torch.nonzero(~cull).squeeze(1))
         with torch.no_grad():  # EdgeGaussians resets opacities after a cull by capping the logits
-            model.opacity_logits.clamp_(max=self.config.opacity_logit_cap)
+            model.opacity_logits.clamp_(max=self.settings.opacity_logit_cap)
         return {"event": f"cull_{reason}", "before": before, "after": len(model)}
 
     def _edge_hit_share(self, model: EdgeModel, views: EdgeViews) -> torch.Tensor:

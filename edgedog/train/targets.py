@@ -24,9 +24,9 @@ def fixed_shift(config: TrainConfig, scene: Scene, maps_name: str, own_maps: boo
     training resolution, where the detector's calibration holds as measured.
     """
     scale = scene.downscale if own_maps else 1
-    if config.map_correction == "shift":
-        return config.map_shift[0] / scale, config.map_shift[1] / scale
-    if config.map_correction != "calibrated":
+    if config.maps.correction == "shift":
+        return config.maps.shift[0] / scale, config.maps.shift[1] / scale
+    if config.maps.correction != "calibrated":
         return 0.0, 0.0
     detector = make_detector(maps_name)
     calibration = load_calibration(detector)
@@ -50,10 +50,10 @@ def images_carry_alpha(scene: Scene) -> bool:
 
 
 def corrects_silhouettes(config: TrainConfig, scene: Scene) -> bool:
-    """Whether the run pulls its maps onto the masks' outline (`silhouette_correction`)."""
-    if config.silhouette_correction == "auto":
+    """Whether the run pulls its maps onto the masks' outline (`maps.silhouette_correction`)."""
+    if config.maps.silhouette_correction == "auto":
         return images_carry_alpha(scene)
-    return config.silhouette_correction == "measured"
+    return config.maps.silhouette_correction == "measured"
 
 
 def scene_outlines(scene: Scene) -> tuple[list[Outline | None], list[str]]:
@@ -105,36 +105,36 @@ def correct_silhouettes(maps: list[np.ndarray], masks: list[np.ndarray], outline
 def prepare_maps(maps: list[np.ndarray], config: TrainConfig, shift: tuple[float, float],
                  outlines: list[Outline | None] | None = None
                  ) -> tuple[list[np.ndarray], list[np.ndarray], dict | None]:
-    """Targets and edge masks from (H, W) maps: values under `map_floor` zeroed, the shift
+    """Targets and edge masks from (H, W) maps: values under `maps.floor` zeroed, the shift
     applied, then the silhouettes pulled onto the views' `outlines` when given (see
-    `corrects_silhouettes`); the masks (map >= edge_threshold, for the sampled loss and the
+    `corrects_silhouettes`); the masks (map >= maps.edge_threshold, for the sampled loss and the
     projection cull) are taken before the shift and the pull and moved with the maps by
     nearest pixel (interpolation dims thin lines below the threshold); the 'thin' profile is
     drawn last, for the targets only. The third value is the silhouette report (None when not
     corrected)."""
-    if config.map_floor > 0:
-        maps = [np.where(m >= config.map_floor, m, 0).astype(np.float32) for m in maps]
-    masks = [m >= config.edge_threshold for m in maps]
+    if config.maps.floor > 0:
+        maps = [np.where(m >= config.maps.floor, m, 0).astype(np.float32) for m in maps]
+    masks = [m >= config.maps.edge_threshold for m in maps]
     if shift != (0.0, 0.0):
         maps = [shift_edge_map(m, *shift) for m in maps]
         masks = [shift_edge_map(k, *shift, nearest=True) for k in masks]
     silhouette = None
     if outlines is not None:
-        maps, masks, silhouette = correct_silhouettes(maps, masks, outlines, config.silhouette_reach)
-    if config.edge_profile == "thin":
-        maps = [thin_edge_map(m, config.thin_sigma) for m in maps]
+        maps, masks, silhouette = correct_silhouettes(maps, masks, outlines, config.maps.silhouette_reach)
+    if config.maps.edge_profile == "thin":
+        maps = [thin_edge_map(m, config.maps.thin_sigma) for m in maps]
     return maps, masks, silhouette
 
 
 class LearnedShift:
     """One 2D shift (px, the maps' convention) of every target, fitted by its own Adam with the
-    primitives from `map_shift_from_epoch` on: a dataset's detector offset, estimated from the
+    primitives from `maps.shift_from_epoch` on: a dataset's detector offset, estimated from the
     views' agreement (a 2D shift of every view is no 3D motion of the primitives)."""
 
     def __init__(self, config: TrainConfig):
-        self.from_epoch = config.map_shift_from_epoch
+        self.from_epoch = config.maps.shift_from_epoch
         self.shift = torch.zeros(2, requires_grad=True)
-        self.adam = torch.optim.Adam([self.shift], lr=config.lr_map_shift)
+        self.adam = torch.optim.Adam([self.shift], lr=config.maps.lr_shift)
 
     def target(self, target: torch.Tensor, epoch: int) -> torch.Tensor:
         """(H, W) target as fitted at `epoch`: shifted (differentiably) once the shift is on."""

@@ -119,7 +119,7 @@ def read_stack(run_dir: Path) -> LowerLayers:
     saved = read_checkpoint(path)
     lower = LowerLayers.from_numpy(model_arrays(saved, "lower", path, with_layers=True))
     top = EdgeModel.from_numpy(model_arrays(saved, "model", path))
-    return lower.plus(top, _saved_config(saved, path).layer)
+    return lower.plus(top, _saved_config(saved, path).layers.layer)
 
 
 def _saved_config(saved: dict, path: Path) -> TrainConfig:
@@ -133,20 +133,20 @@ def _saved_config(saved: dict, path: Path) -> TrainConfig:
 class Trainer:
     """Trains an EdgeModel on a scene's pseudo-edge maps; writes its run folder `out`.
 
-    `lower`: for a layer above the first (config.layer > 0), the layers below it, rendered with
-    the model and kept fixed (or fine-tuned at `lower_lr_scale`). A resumed run takes them from
+    `lower`: for a layer above the first (config.layers.layer > 0), the layers below it, rendered with
+    the model and kept fixed (or fine-tuned at `layers.lower_lr_scale`). A resumed run takes them from
     its checkpoint.
 
-    Every random draw comes from `generator` (seeded with `config.seed`, saved in checkpoints)
-    or from numpy generators seeded from `config.seed` where they are used: no process-global
+    Every random draw comes from `generator` (seeded with `config.run.seed`, saved in checkpoints)
+    or from numpy generators seeded from `config.run.seed` where they are used: no process-global
     random state is read or set, so a run gives the same result whatever ran before it.
     """
 
     def __init__(self, scene: Scene, config: TrainConfig, out: Path, progress: bool = True,
                  lower: LowerLayers | None = None):
         self.scene, self.out, self.progress = scene, Path(out), progress
-        self.raster = RasterConfig(kernel=config.kernel, k_activation=config.k_activation)
-        self.detector = self._edge_maps(config.detector)
+        self.raster = RasterConfig(kernel=config.model.kernel, k_activation=config.model.k_activation)
+        self.detector = self._edge_maps(config.maps.detector)
         # The settings left to the maps' detector are fixed now: checkpoints and log.json hold them.
         self.config = config = for_detector(config, self.detector)
         self.cameras = [RasterCamera.from_camera(scene.camera(i)) for i in range(len(scene))]
@@ -158,10 +158,10 @@ class Trainer:
             self.silhouette["views_without_mask"] = unreadable
         self.targets = [torch.from_numpy(m) for m in maps]
         self.views = EdgeViews(self.cameras, scene.cameras, [torch.from_numpy(m) for m in masks])
-        self.learned_shift = LearnedShift(config) if config.map_correction == "learned" else None
+        self.learned_shift = LearnedShift(config) if config.maps.correction == "learned" else None
         self.strategy = DensityStrategy(config, self.raster)
-        self.controls = Controls(config.keep_ratio, config.weighting)
-        self.generator = torch.Generator().manual_seed(config.seed)
+        self.controls = Controls(config.strategy.keep_ratio, config.loss.weighting)
+        self.generator = torch.Generator().manual_seed(config.run.seed)
         self.step_index = 0
         self.history: list[dict] = []
         self.events: list[dict] = []
@@ -190,21 +190,20 @@ class Trainer:
 
     def _initialise(self) -> None:
         c = self.config
-        points = initialize(self.scene, c.init_method, detector=self.detector, seed=c.seed,
-                            uniform_count=c.init_count, uniform_side=c.init_side)
+        points = initialize(self.scene, c.init, detector=self.detector, seed=c.run.seed)
         if len(self.lower):
             residuals = residual_maps(self.lower, self.cameras, self.targets, self.raster)
-            points = keep_on_residual(points, self.scene.cameras, residuals, c.edge_threshold,
-                                      c.residual_min_share)
+            points = keep_on_residual(points, self.scene.cameras, residuals, c.maps.edge_threshold,
+                                      c.layers.residual_min_share)
         self.init_report = {"method": points.method, "points": len(points), **points.report}
-        self.model = EdgeModel.from_points(points, c.init_opacity, c.k_init, self.generator)
+        self.model = EdgeModel.from_points(points, c.init.opacity, c.init.k, self.generator)
         self.optimizers = Optimizers(self.model, c)
         self.state = self.strategy.initial_state(len(self.model))
         self.initial_count = len(self.model)
 
     def _bind_lower(self) -> None:
         """Lower layers are fixed, or fine-tuned by their own Adams at the scaled rates."""
-        tune = self.config.lower_lr_scale > 0 and len(self.lower) > 0
+        tune = self.config.layers.lower_lr_scale > 0 and len(self.lower) > 0
         for tensor in self.lower.model.tensors().values():
             tensor.requires_grad_(tune)
         self.lower_optimizers = (Optimizers(self.lower.model, lower_layer_config(self.config))
@@ -217,14 +216,14 @@ class Trainer:
 
     @property
     def done(self) -> bool:
-        return self.epoch >= self.config.epochs
+        return self.epoch >= self.config.schedule.epochs
 
     def step(self) -> float:
         """One view: render, loss, backward, Adam; density control at the end of an epoch.
 
         Returns the projection loss of the step.
         """
-        c, epoch, position = self.config, self.epoch, self.step_index % len(self.cameras)
+        c, epoch, position = self.config.loss, self.epoch, self.step_index % len(self.cameras)
         keep_ratio, weighting, _ = self.controls.read()
         started = time.perf_counter()
         if position == 0:
@@ -239,11 +238,11 @@ class Trainer:
         if c.pixel_uncertainty:
             weight = losses.uncertainty_weight(losses.depth_uncertainty(out.depth.detach()), weighting)
         sample = None
-        if epoch >= c.sampled_loss_from_epoch and self.step_index % c.sampled_loss_every == 0:
+        if epoch >= c.sampled_from_epoch and self.step_index % c.sampled_every == 0:
             sample = losses.edge_and_background_sample(self.views.edge_masks[view], self.generator)
         render, target = out.image[..., 0], self.targets[view]
-        if c.edge_profile == "profile":
-            render = blur_to_profile(render, c.profile_sigma)
+        if self.config.maps.edge_profile == "profile":
+            render = blur_to_profile(render, self.config.maps.profile_sigma)
         if self.learned_shift is not None:
             target = self.learned_shift.target(target, epoch)
         loss = losses.projection_loss(render, target, weight, sample)
@@ -261,14 +260,14 @@ class Trainer:
         self.seconds += time.perf_counter() - started
         if position == len(self.cameras) - 1:
             self._end_epoch(epoch, keep_ratio)
-        if self.step_index % c.snapshot_every == 0 or self.done:
+        if self.step_index % self.config.run.snapshot_every == 0 or self.done:
             self.latest_snapshot = self.snapshot(self._epoch_losses[-1])
         return self._epoch_losses[-1]
 
     def _orientation_losses(self, epoch: int) -> None:
         """EdgeGaussians' direction and scale-ratio terms, each weighted to `factor` times the
         running sum of the epoch's projection losses and stepped on the geometry alone."""
-        c = self.config
+        c = self.config.loss
         # EdgeGaussians' balance: the sum of this epoch's projection losses so far, times the factor.
         running = float(np.sum(self._epoch_losses))
         terms = []
@@ -295,12 +294,12 @@ class Trainer:
         self.history.append({"epoch": epoch, "loss": float(np.mean(self._epoch_losses)),
                              "primitives_before_events": before, "primitives": len(self.model),
                              "seconds": round(self.seconds, 2)})
-        if (epoch + 1) % self.config.checkpoint_every == 0 or epoch + 1 == self.config.epochs:
+        if (epoch + 1) % self.config.run.checkpoint_every == 0 or epoch + 1 == self.config.schedule.epochs:
             self.save_checkpoint()
 
     def run(self) -> None:
         """Train to the end (resuming where a checkpoint left off), then write the outputs."""
-        total = self.config.epochs * len(self.cameras)
+        total = self.config.schedule.epochs * len(self.cameras)
         with tqdm(total=total, initial=self.step_index, unit="step", disable=not self.progress,
                   desc="train") as bar:
             while not self.done:
@@ -317,7 +316,7 @@ class Trainer:
     def stack(self) -> LowerLayers:
         """The lower layers with this run's model on top (detached): the whole layered model,
         and the lower layers of the next layer."""
-        return self.lower.plus(self.model, self.config.layer)
+        return self.lower.plus(self.model, self.config.layers.layer)
 
     def snapshot(self, loss: float = float("nan")) -> Snapshot:
         return stack_snapshot(self.stack(), self.step_index, self.epoch, loss, self.state.pruned_positions)

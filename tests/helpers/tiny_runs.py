@@ -4,14 +4,13 @@ with the command line."""
 
 from __future__ import annotations
 
-import dataclasses
 from pathlib import Path
 
 from edgedog.scenes import load_scene
-from edgedog.train.config import TrainConfig, preset
+from edgedog.train.config import TrainConfig, preset, with_settings
 from tests.helpers.bad_inputs import edgedog
 
-QUICK_TRAIN = ["--preset", "preview", "--set", "epochs=2", "--set", "init_count=300", "--quiet"]
+QUICK_TRAIN = ["--preset", "preview", "--set", "epochs=2", "--set", "init.count=300", "--quiet"]
 """`edgedog train` options of a run finished in seconds on a small scene."""
 
 
@@ -25,12 +24,13 @@ def make_small_scene(folder: Path, shape: str = "box") -> Path:
 
 
 def tiny_config(**changes) -> TrainConfig:
-    """Two epochs at 100 px from 300 uniform points, with `changes` applied."""
-    base = dataclasses.replace(preset("preview"), downscale=4, epochs=2, init_count=300, init_side=0.8,
-                               init_method="uniform", duplicate_epochs=(), cull_projection_epochs=(),
-                               cull_opacity_epochs=(), fisher_every=100, opacity_from_epoch=0,
-                               checkpoint_every=2, snapshot_every=5)
-    return dataclasses.replace(base, **changes)
+    """Two epochs at 100 px from 300 uniform points, with `changes` (settings by bare or old flat
+    name) applied."""
+    base = with_settings(preset("preview"), {
+        "downscale": 4, "epochs": 2, "init.count": 300, "init.side": 0.8, "init.method": "uniform",
+        "duplicate_epochs": (), "cull_projection_epochs": (), "cull_opacity_epochs": (), "fisher_every": 100,
+        "opacity_from_epoch": 0, "checkpoint_every": 2, "snapshot_every": 5})
+    return with_settings(base, changes)
 
 
 def every_fifth_view(scene_dir):

@@ -1,0 +1,51 @@
+"""The settings of the initialisation, shared by `edgedog init` and training's `init` section.
+
+They live here, below training, so that `edgedog.init`'s functions and `edgedog init` take
+their defaults from the same place as `edgedog train`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Annotated, Literal
+
+from edgedog.settings import Range, Settings
+
+MAX_PRIMITIVES = 2_000_000
+"""Ten times the paper's budget (strategy.max_primitives); each primitive costs about 0.3 KB with
+its Adam moments and gradients, and every step renders all of them."""
+MAX_LOGIT = 20.0
+"""Raw values that go through a sigmoid or exp: sigmoid(20) is 1 in float32, and exp overflows
+past 88."""
+
+Count = Annotated[int, Range(1, MAX_PRIMITIVES)]
+"""A number of primitives."""
+Logit = Annotated[float, Range(-MAX_LOGIT, MAX_LOGIT)]
+"""A raw value before its activation."""
+
+InitMethod = Literal["auto", "triangulate", "sfm-points", "uniform"]
+"""'uniform': EdgeGaussians' cube; 'triangulate': SIFT matches triangulated with the known
+cameras; 'sfm-points': a COLMAP scene's own points; 'auto': the first of sfm-points, triangulate,
+uniform that gives enough points (see `edgedog.init.initialize`)."""
+
+
+@dataclass(frozen=True)
+class InitSettings(Settings):
+    """Where the initial primitives come from and how they start."""
+
+    method: InitMethod = "auto"
+    """How the initial points are found (see `InitMethod`)."""
+    count: Count = 10000
+    """Points of the uniform cube (EdgeGaussians start from 2500; with w = exp(-Up) the rims that
+    are also depth jumps need the denser start: docs/BENCHMARKS.md)."""
+    side: Annotated[float | None, Range(0, open_low=True)] = 1.1
+    """Edge of the uniform cube (EdgeGaussians: 1.1 around the object for ABC); None: the scene
+    bounds' largest extent."""
+    edge_threshold: Annotated[float, Range(0, 1, open_low=True)] = 0.3
+    """Triangulated and SfM points are kept where the edge map is >= this in 2+ views (looser
+    than maps.edge_threshold: a point need only land near an edge)."""
+    opacity: Annotated[float, Range(0, 1, open_low=True, open_high=True)] = 0.08
+    """Initial opacity of every primitive."""
+    k: tuple[Logit, Logit] = (0.0, 0.0)
+    """Raw DoG shape k at initialisation (the paper's 0)."""
+
