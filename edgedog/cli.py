@@ -8,6 +8,7 @@ import traceback
 
 from edgedog import __version__
 from edgedog.commands import (
+    batch,
     bench,
     calibrate,
     demo,
@@ -24,8 +25,8 @@ from edgedog.commands import (
 )
 from edgedog.errors import EdgeDogError
 
-COMMANDS = (info, edges, calibrate, init, sfm, train, extract, export, evaluate, bench, demo, make_scene,
-            studio)
+COMMANDS = (info, edges, calibrate, init, sfm, train, extract, export, evaluate, bench, batch, demo,
+            make_scene, studio)
 
 
 INTERRUPTED = 130

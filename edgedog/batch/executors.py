@@ -1,0 +1,143 @@
+"""Where a batch's runs execute: one after another in this process, or as Ray tasks.
+
+Both take (spec, plan) jobs planned by the driver (`edgedog.batch.runner`) and yield each run's
+`RunOutcome` as it finishes. A run executes under its folder's lock (`lifecycle.execute`), which
+re-reads the folder: a task Ray retries after its worker died resumes from the run's checkpoint.
+Each run gets `cpus_per_run` threads (torch, OpenMP, MKL, OpenBLAS), so runs never oversubscribe
+the cores that Ray hands out by `num_cpus`.
+"""
+
+from __future__ import annotations
+
+import logging
+import socket
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass
+
+from edgedog.batch.outcome import RunOutcome
+from edgedog.batch.suite import RunSpec
+from edgedog.errors import ConfigError, EdgeDogError
+from edgedog.train.lifecycle import RunPlan
+
+INSTALL_HINT = "pip install 'edgedog[cluster]'"
+MAX_RETRIES = 3
+"""Times Ray runs a task again after its worker process or node was lost (not after an error)."""
+THREAD_VARIABLES = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS")
+
+
+@dataclass(frozen=True)
+class Job:
+    """A run to execute: its spec and the plan the driver made for it."""
+
+    spec: RunSpec
+    plan: RunPlan
+
+
+def run_job(job: Job, threads: int) -> RunOutcome:
+    """Execute one planned run with `threads` torch threads; a user error (e.g. a detector with
+    no calibration) ends the run with its message, not the batch."""
+    import torch
+
+    from edgedog.train.lifecycle import execute
+
+    torch.set_num_threads(threads)
+    try:
+        result = execute(job.plan, progress=False)
+    except EdgeDogError as error:
+        return RunOutcome(job.spec, job.plan.state, error=str(error))
+    return RunOutcome(job.spec, result.plan.state, result.plan.step, result.log, result.report)
+
+
+@dataclass(frozen=True)
+class SequentialExecutor:
+    """Runs the jobs one after another in this process (no Ray), each with `cpus_per_run` torch
+    threads (restored afterwards)."""
+
+    cpus_per_run: int = 1
+
+    def run(self, jobs: Sequence[Job]) -> Iterator[RunOutcome]:
+        import torch
+
+        threads = torch.get_num_threads()
+        try:
+            for job in jobs:
+                yield run_job(job, self.cpus_per_run)
+        finally:
+            torch.set_num_threads(threads)
+
+
+def import_ray():
+    """The ray module; ConfigError saying how to install it when it is not installed."""
+    try:
+        import ray
+    except ImportError:
+        raise ConfigError(f"edgedog batch runs on Ray, which is not installed: {INSTALL_HINT}") from None
+    return ray
+
+
+@dataclass(frozen=True)
+class RayExecutor:
+    """Runs each job as a Ray task of `cpus_per_run` CPUs.
+
+    address: None starts Ray on this machine for the batch (stopped after it); 'auto' joins the
+    cluster started here with `ray start`; 'HOST:PORT' or 'ray://HOST:PORT' another one's head.
+    Every node needs this Python environment and the scenes and the output folder at the same paths.
+    """
+
+    address: str | None = None
+    cpus_per_run: int = 1
+
+    def run(self, jobs: Sequence[Job]) -> Iterator[RunOutcome]:
+        if not jobs:
+            return
+        ray = import_ray()
+        self._connect(ray)
+        try:
+            cpus = ray.cluster_resources().get("CPU", 0)
+            if cpus < self.cpus_per_run:
+                raise ConfigError(f"--cpus-per-run {self.cpus_per_run}: the Ray cluster has {cpus:g} CPUs")
+            threads = {name: str(self.cpus_per_run) for name in THREAD_VARIABLES}
+            task = ray.remote(run_job).options(
+                num_cpus=self.cpus_per_run, max_retries=MAX_RETRIES, retry_exceptions=False,
+                runtime_env={"env_vars": threads})  # read when the worker's torch loads
+            jobs_of = {task.remote(job, self.cpus_per_run): job for job in jobs}
+            pending = list(jobs_of)
+            lost = (ray.exceptions.WorkerCrashedError, ray.exceptions.NodeDiedError,
+                    ray.exceptions.OutOfMemoryError)
+            while pending:
+                (ready,), pending = ray.wait(pending, num_returns=1)
+                try:
+                    outcome = ray.get(ready)
+                except lost as error:  # its last retry was lost too: the run fails, the others go on
+                    job = jobs_of[ready]
+                    outcome = RunOutcome(job.spec, job.plan.state, error=f"its worker was lost "
+                                         f"{MAX_RETRIES + 1} times (last: {type(error).__name__})")
+                yield outcome
+        finally:
+            ray.shutdown()
+
+    def _connect(self, ray) -> None:
+        if self.address not in (None, "auto"):
+            check_reachable(self.address)
+        quiet = {"logging_level": logging.WARNING, "log_to_driver": False}
+        try:
+            if self.address is None:
+                ray.init(include_dashboard=False, **quiet)
+            else:
+                ray.init(address=self.address, **quiet)
+        except (ConnectionError, ValueError, RuntimeError) as error:
+            where = f"--address {self.address}: cannot join Ray" if self.address else "cannot start Ray"
+            raise ConfigError(f"{where} ({' '.join(str(error).split())})") from None
+
+
+def check_reachable(address: str, timeout: float = 10.0) -> None:
+    """ConfigError unless something listens at `address` ('HOST:PORT' or 'ray://HOST:PORT'): Ray
+    itself retries an unreachable head for minutes before it gives up."""
+    host, _, port = address.removeprefix("ray://").rpartition(":")
+    if not host or not port.isdigit():
+        raise ConfigError(f"--address {address}: expected auto, HOST:PORT or ray://HOST:PORT")
+    try:
+        socket.create_connection((host, int(port)), timeout=timeout).close()
+    except OSError as error:
+        raise ConfigError(f"--address {address}: cannot reach {host}:{port} "
+                          f"({error.strerror or type(error).__name__})") from None

@@ -1,0 +1,96 @@
+"""A batch from start to table: plan every run of a suite here, hand the runs left to an executor,
+gather what they give back and write the tables.
+
+Planning reads each run's folder (`lifecycle.plan_run`, policy REUSE) before anything runs, so a
+suite whose settings cannot be applied, or an output folder holding other runs, stops the batch
+with one line and no work done. A run found finished and extracted is read, not executed: rerunning
+a batch runs only what is left. The batch folder is locked for the whole batch, each run folder by
+the worker executing it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Protocol
+
+from edgedog.batch.executors import Job
+from edgedog.batch.outcome import SKIPPED, RunOutcome
+from edgedog.batch.suite import RunSpec
+from edgedog.batch.table import write_tables
+from edgedog.errors import ConfigError, InputError
+from edgedog.files import read_json
+from edgedog.train.lifecycle import FINISHED, LOG, REUSE, plan_run
+from edgedog.train.run_folder import RunLock, is_run_folder
+
+
+class Executor(Protocol):
+    def run(self, jobs: list[Job]): ...
+
+
+@dataclass(frozen=True)
+class BatchResult:
+    """outcomes: one per run, in the suite's order; files: the tables written."""
+
+    outcomes: list[RunOutcome]
+    files: list[Path]
+
+    def count(self, state: str) -> int:
+        return sum(outcome.state == state for outcome in self.outcomes)
+
+    @property
+    def failed(self) -> list[RunOutcome]:
+        return [outcome for outcome in self.outcomes if outcome.error]
+
+
+def plan_jobs(specs: list[RunSpec], out: Path, suite_path: Path) -> list[Job]:
+    """Each run's plan in out/<run name>; the first run that cannot be planned is one error
+    naming the suite (a setting) or the folder (a folder holding something else)."""
+    jobs = []
+    for spec in specs:
+        try:
+            config = spec.config()
+        except ConfigError as error:
+            raise InputError(suite_path, f"run {spec.name}: {error}") from None
+        jobs.append(Job(spec, plan_run(out / spec.name, spec.scene, spec.preset, config, REUSE).check()))
+    return jobs
+
+
+def finished_outcome(job: Job) -> RunOutcome | None:
+    """The outcome of a run already finished and extracted, read from its folder; else None."""
+    from edgedog.curves.report import REPORT
+
+    plan = job.plan
+    if plan.state != FINISHED or not plan.extracted:
+        return None
+    path = plan.run.path
+    return RunOutcome(job.spec, SKIPPED, plan.step, read_json(path / LOG), read_json(path / REPORT))
+
+
+def run_batch(specs: list[RunSpec], out: Path, executor: Executor, suite_path: Path,
+              report: Callable[[int, int, RunOutcome], None] | None = None) -> BatchResult:
+    """Plan, execute and tabulate `specs` into `out` (locked throughout); `report(done, total,
+    outcome)` is called as each run finishes (skipped ones first)."""
+    out = Path(out).resolve()
+    if is_run_folder(out):
+        raise InputError(out, "is a training run; give the batch a folder of its own")
+    with RunLock.acquire(out):
+        jobs = plan_jobs(specs, out, suite_path)
+        outcomes: dict[str, RunOutcome] = {}
+        left = []
+        for job in jobs:
+            done = finished_outcome(job)
+            if done is None:
+                left.append(job)
+            else:
+                outcomes[job.spec.name] = done
+        if report is not None:
+            for index, outcome in enumerate(outcomes.values()):
+                report(index + 1, len(jobs), outcome)
+        for outcome in executor.run(left):
+            outcomes[outcome.spec.name] = outcome
+            if report is not None:
+                report(len(outcomes), len(jobs), outcome)
+        ordered = [outcomes[spec.name] for spec in specs]
+        return BatchResult(ordered, write_tables(out, ordered))
