@@ -10,7 +10,7 @@ SUDO   := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 DEB_PACKAGES := xvfb libegl1 libgl1-mesa-dri
 EXT_SOURCES  := $(wildcard csrc/*.cpp csrc/*.h) setup.py
 
-.PHONY: all setup system-deps build demo test test-fast lint screenshots clean
+.PHONY: all setup system-deps build demo test test-fast lint docs screenshots clean
 
 all: setup
 
@@ -62,6 +62,10 @@ lint: $(VENV)/.deps-installed
 	cp -rs $(CURDIR)/renderer $(IMPORT_TREE)/edgedog/renderer
 	cp -rs $(CURDIR)/app $(IMPORT_TREE)/edgedog/app
 	cd $(IMPORT_TREE) && PYTHONPATH=. $(CURDIR)/$(BIN)/lint-imports $(CURDIR)/pyproject.toml
+
+# docs/CLI.md from the command-line parsers (tests/test_cli_reference.py fails when it is stale).
+docs: $(VENV)/.ext-built
+	$(BIN)/python -m edgedog.cli_reference --out docs/CLI.md
 
 # The studio pictures in docs/, each from a scripted session on a virtual display.
 screenshots: setup
