@@ -481,3 +481,21 @@ def test_training_refuses_a_damaged_photo_beside_good_edge_maps(tmp_path):
     assert result.returncode == 2 and result.stderr.count("\n") == 1, result.stderr
     assert "train_img/r_1.png" in result.stderr and "truncated PNG" in result.stderr
     assert not (tmp_path / "run").exists() or not any((tmp_path / "run").iterdir())
+
+
+def test_damaged_views_skip_trains_on_the_other_views_and_says_so(tmp_path):
+    """With damaged_views=skip the cut photo's view is left out of training, of the scene's
+    fingerprint and of the extraction, and log.json names it; a resume takes the same views."""
+    root = nef(tmp_path)
+    cut = root / "train_img" / "r_1.png"
+    truncated(cut)
+    run = tmp_path / "run"
+    options = ["--preset", "preview", "--set", "epochs=1", "--set", "init_count=50", "--quiet"]
+    result = edgedog("train", root, "--out", run, *options, "--set", "damaged_views=skip")
+    assert result.returncode == 0, result.stderr
+    assert f"skipped the view of {cut}" in result.stdout and "truncated PNG" in result.stdout
+    log = json.loads((run / "log.json").read_text())
+    assert list(log["skipped_views"]) == [str(cut)]
+    assert (run / "curves.json").is_file()
+    resumed = edgedog("train", root, "--out", run, "--resume", "--quiet")
+    assert resumed.returncode == 0, resumed.stderr

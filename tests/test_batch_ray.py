@@ -142,3 +142,22 @@ def test_a_killed_worker_is_retried_and_the_batch_matches_a_sequential_one(tmp_p
     assert again.returncode == 0, again.stdout + again.stderr
     assert "(0 new, 0 resume, 0 finished, 4 skipped)" in again.stdout
     assert {path: path.stat().st_mtime_ns for path in out.glob("*/log.json")} == logs
+
+
+def test_the_ray_started_for_a_batch_writes_nothing_into_the_home_folder(tmp_path, small_box_scene):
+    """Without --address the batch starts Ray here with a token of its own: Ray would otherwise
+    write one into ~/.ray (token authentication is on for local instances since Ray 2.59)."""
+    suite = tmp_path / "suite.yaml"
+    suite.write_text(SUITE.format(scene=small_box_scene).replace("[0, 1, 2, 3]", "[0]")
+                     .replace("epochs=100", "epochs=2"))
+    home = tmp_path / "home"
+    home.mkdir()
+    env = {key: value for key, value in os.environ.items() if not key.startswith("RAY_AUTH")}
+    env.update(HOME=str(home), RAY_TMPDIR=tempfile.mkdtemp(prefix="ray", dir="/tmp"))
+    command = [sys.executable, "-m", "edgedog", "batch", suite, "--out", tmp_path / "out"]
+    result = subprocess.run(command, env=env, capture_output=True, text=True, timeout=400,
+                            stdin=subprocess.DEVNULL)
+    shutil.rmtree(env["RAY_TMPDIR"], ignore_errors=True)
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert (tmp_path / "out" / "batch.csv").is_file()
+    assert not (home / ".ray").exists(), sorted(home.rglob("*"))

@@ -9,9 +9,13 @@ the cores that Ray hands out by `num_cpus`.
 
 from __future__ import annotations
 
+import importlib.util
 import logging
+import os
+import secrets
 import socket
 from collections.abc import Iterator, Sequence
+from contextlib import contextmanager, nullcontext
 from dataclasses import dataclass
 
 from edgedog.batch.outcome import RunOutcome
@@ -66,12 +70,18 @@ class SequentialExecutor:
             torch.set_num_threads(threads)
 
 
+def require_ray() -> None:
+    """ConfigError saying how to install Ray when it is not installed; imports nothing (Ray reads
+    its token settings when it is imported)."""
+    if importlib.util.find_spec("ray") is None:
+        raise ConfigError(f"edgedog batch runs on Ray, which is not installed: {INSTALL_HINT}")
+
+
 def import_ray():
     """The ray module; ConfigError saying how to install it when it is not installed."""
-    try:
-        import ray
-    except ImportError:
-        raise ConfigError(f"edgedog batch runs on Ray, which is not installed: {INSTALL_HINT}") from None
+    require_ray()
+    import ray
+
     return ray
 
 
@@ -90,7 +100,10 @@ class RayExecutor:
     def run(self, jobs: Sequence[Job]) -> Iterator[RunOutcome]:
         if not jobs:
             return
-        ray = import_ray()
+        with _private_token() if self.address is None else nullcontext():  # before Ray reads it
+            yield from self._run_connected(import_ray(), jobs)
+
+    def _run_connected(self, ray, jobs: Sequence[Job]) -> Iterator[RunOutcome]:
         self._connect(ray)
         try:
             cpus = ray.cluster_resources().get("CPU", 0)
@@ -128,6 +141,26 @@ class RayExecutor:
         except (ConnectionError, ValueError, RuntimeError) as error:
             where = f"--address {self.address}: cannot join Ray" if self.address else "cannot start Ray"
             raise ConfigError(f"{where} ({' '.join(str(error).split())})") from None
+
+
+@contextmanager
+def _private_token() -> Iterator[None]:
+    """A token of this batch's own for the Ray instance it starts here, unless one is configured:
+    Ray (2.59 on) turns token authentication on for local instances and would otherwise write
+    one into the user's home folder (~/.ray/auth_token)."""
+    if os.environ.get("RAY_AUTH_TOKEN") or os.environ.get("RAY_AUTH_TOKEN_PATH"):
+        yield
+        return
+    saved = {name: os.environ.get(name) for name in ("RAY_AUTH_MODE", "RAY_AUTH_TOKEN")}
+    os.environ.update(RAY_AUTH_MODE="token", RAY_AUTH_TOKEN=secrets.token_hex(32))
+    try:
+        yield
+    finally:
+        for name, value in saved.items():
+            if value is None:
+                os.environ.pop(name, None)
+            else:
+                os.environ[name] = value
 
 
 def check_reachable(address: str, timeout: float = 10.0) -> None:

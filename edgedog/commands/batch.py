@@ -61,13 +61,13 @@ def resume_hint(args: argparse.Namespace) -> str:
 
 
 def run(args: argparse.Namespace) -> None:
-    from edgedog.batch.executors import RayExecutor, import_ray
+    from edgedog.batch.executors import RayExecutor, require_ray
     from edgedog.batch.runner import run_batch
     from edgedog.batch.suite import expand, load_suite
 
     suite = load_suite(args.suite, tuple(args.overrides))
     specs = expand(suite)
-    import_ray()  # after the suite's checks: they need no Ray
+    require_ray()  # after the suite's checks: they need no Ray
     started = time.monotonic()
     result = run_batch(specs, args.out, RayExecutor(args.address, args.cpus_per_run), suite.path,
                        report=print_progress)

@@ -87,6 +87,8 @@ def train_and_report(plan, quiet: bool) -> None:
         print(json.dumps({"detector": trainer.detector, "init": trainer.init_report.get("method"),
                           "initial_primitives": trainer.initial_count,
                           "resumed_at_step": trainer.step_index}))
+        for path, problem in trainer.scene.skipped.items():
+            print(f"skipped the view of {path}: {problem}")
 
     result = execute(plan.check(), progress=not quiet, on_trainer=announce)
     log = result.log

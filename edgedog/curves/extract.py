@@ -105,7 +105,7 @@ def run_scene(run_dir: Path, maps: bool = True) -> tuple[Scene, str]:
     downscale = map_settings.get("downscale", 1) if isinstance(map_settings, dict) else None
     if type(downscale) is not int or downscale < 1:
         raise InputError(path, f"config.maps.downscale must be a positive integer, got {downscale!r}")
-    scene = load_scene(log["scene"], downscale=downscale)
+    scene = load_scene(log["scene"], downscale=downscale).without_damaged()  # as training skipped them
     if maps:
         attach_edge_maps(scene, log["detector"])
     return scene, log["detector"]

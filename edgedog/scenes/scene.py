@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -55,6 +56,7 @@ class Scene:
         background: what RGBA images are composited on (None drops the alpha channel).
         damaged: image file -> why it cannot be read (cut short, undecodable, too large), for
             the images found so when the scene loaded; reading one raises that InputError.
+        skipped: image file -> its problem, for the views `without_damaged` took out.
     """
 
     root: Path
@@ -67,6 +69,12 @@ class Scene:
     downscale: int = 1
     background: Background = (0.0, 0.0, 0.0)
     damaged: dict[Path, str] = field(default_factory=dict)
+    skipped: dict[Path, str] = field(default_factory=dict)
+
+    def without_damaged(self) -> Scene:
+        """The scene without the views whose image is damaged (recorded in `skipped`)."""
+        views = [view for view in self.views if view.image_path not in self.damaged]
+        return dataclasses.replace(self, views=views, damaged={}, skipped={**self.skipped, **self.damaged})
 
     def __len__(self) -> int:
         return len(self.views)

@@ -270,6 +270,9 @@ class RunSettings(Settings):
     """Epochs between checkpoints (one is always written at the end)."""
     snapshot_every: Every = 25
     """Steps between the snapshots published to a viewer."""
+    damaged_views: Literal["refuse", "skip"] = "refuse"
+    """Views whose image cannot be read (cut short, undecodable): 'refuse' the scene, naming the
+    first such file; 'skip' train on the other views (log.json lists the views left out)."""
 
 
 @dataclass(frozen=True)

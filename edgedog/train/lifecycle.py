@@ -101,8 +101,8 @@ def is_finished(path: Path) -> bool:
 
 def load_run_scene(path: str | Path, config: TrainConfig) -> Scene:
     """The scene at the config's resolution, with the config's edge maps known to be available
-    (the scene's own, or a detector's) and every view's files readable: checked before anything
-    is written."""
+    (the scene's own, or a detector's) and every view's files readable, or the views whose image
+    is damaged left out when the config says to skip them: checked before anything is written."""
     from edgedog.edges.registry import make_detector
     from edgedog.scenes import load_scene
 
@@ -111,10 +111,14 @@ def load_run_scene(path: str | Path, config: TrainConfig) -> Scene:
         raise InputError(scene.root, "the scene has no views")
     if config.maps.detector != "auto" and config.maps.detector not in scene.detectors:
         make_detector(config.maps.detector)
+    if scene.damaged and config.run.damaged_views == "skip":
+        scene = scene.without_damaged()
+        if len(scene) == 0:
+            raise InputError(scene.root, "every view's image is damaged")
     if scene.damaged:  # training reads every view's files: refuse now, not mid-run
         path, problem = next(iter(scene.damaged.items()))
         others = f" (and {len(scene.damaged) - 1} more damaged images)" if len(scene.damaged) > 1 else ""
-        raise InputError(path, problem + others)
+        raise InputError(path, f"{problem}{others}; --set damaged_views=skip trains on the other views")
     return scene
 
 

@@ -385,6 +385,7 @@ class Trainer:
         write_points(self.out / "points.ply", snapshot.means)
         atomic_write_json(self.out / "log.json", {
             "scene": str(self.scene.root), "detector": self.detector, "config": to_dict(self.config),
+            "skipped_views": {str(path): problem for path, problem in self.scene.skipped.items()},
             "init": self.init_report, "initial_primitives": self.initial_count,
             "final_primitives": len(self.model), "lower_primitives": len(self.lower),
             "map_shift_px": self.shift_px(),
