@@ -26,20 +26,22 @@ from edgedog.curve_files import EdgeCurves
 from edgedog.curves.report import extract_with_report
 from edgedog.edges.cache import attach_edge_maps
 from edgedog.groundtruth import ground_truth_for
-from edgedog.scenes import Scene, load_scene
+from edgedog.scenes import Scene
 from edgedog.train.config import DEFAULT_PRESET, TrainConfig, preset, with_overrides
 from edgedog.train.layered import (
     LAYERS_FILE,
     LayeredRun,
+    continue_layered,
     extract_layered,
     is_layered,
     layer_trainers,
+    plan_layered,
     read_layered,
     write_layered,
 )
 from edgedog.train.layers import layer_name
-from edgedog.train.levels import check_level_maps, resolve_levels
-from edgedog.train.lifecycle import is_finished
+from edgedog.train.levels import resolve_levels
+from edgedog.train.lifecycle import CONTINUE, START, is_finished, load_run_scene, plan_run
 from edgedog.train.run_folder import LOCK_FILE, RUN_CONFIG, RunFolder, RunLock, read_run, write_run
 from edgedog.train.trainer import Trainer
 
@@ -128,8 +130,8 @@ class Session:
         self.active: ActiveRun | None = None
         self._ending: list[ActiveRun] = []
         self.runs = 0
-        self._scenes: dict[int, Scene] = {}
-        scene = self.scene_at(self.config.maps.downscale)  # a bad folder fails here, before any window
+        self._scenes: dict[tuple[int, str], Scene] = {}
+        scene = self.training_scene(self.config)  # a bad folder fails here, before any window
         self.saved = None if resume is None else self._saved(resume, scene)
         self.ground_truth = None
         source = ground_truth_for(scene.root)
@@ -197,16 +199,18 @@ class Session:
         """A preset with the command line's --set overrides."""
         return with_overrides(preset(preset_name), self.overrides)
 
-    def scene_at(self, downscale: int) -> Scene:
-        """The scene at a run's resolution (loaded once per downscale)."""
-        if downscale not in self._scenes:
-            self._scenes[downscale] = load_scene(self.scene_path, downscale=downscale)
-        return self._scenes[downscale]
+    def training_scene(self, config: TrainConfig) -> Scene:
+        """The scene as a run of `config` trains on it (`lifecycle.load_run_scene`: its resolution,
+        damaged views refused or skipped), loaded once per resolution and choice."""
+        key = (config.maps.downscale, config.run.damaged_views)
+        if key not in self._scenes:
+            self._scenes[key] = load_run_scene(self.scene_path, config)
+        return self._scenes[key]
 
     @property
     def scene(self) -> Scene:
-        """The scene at the resolution of the current run (or of the configuration opened)."""
-        return self.scene_at(self.run_config.maps.downscale)
+        """The scene of the current run (or of the configuration opened)."""
+        return self.training_scene(self.run_config)
 
     @property
     def resumable(self) -> bool:
@@ -222,7 +226,7 @@ class Session:
         ConfigError, before any folder is made."""
         self.stop()
         new = not (self.resumable and not fresh)
-        run = self._new_run(preset_name, config, layers) if new else self.resume
+        run = self._new_run(preset_name, config, layers) if new else self._continued(self.resume)
         lock = RunLock.acquire(run.path)
         try:
             if new:
@@ -238,16 +242,22 @@ class Session:
         return worker
 
     def _new_run(self, preset_name: str, config: TrainConfig, layers: int) -> Run:
-        path, scene = new_run_dir(self.runs_root, self.scene_path.name), self.scene_path.resolve()
+        """A new run folder planned as `edgedog train` plans one (scene checked, fingerprinted)."""
+        path = new_run_dir(self.runs_root, self.scene_path.name)
         if layers <= 1:
-            return RunFolder(path, scene, preset_name, config)
+            return plan_run(path, self.scene_path, preset_name, config, START).check().run
         levels = resolve_levels([layer_name(i) for i in range(layers)])
-        check_level_maps(levels, self.scene_at(config.maps.downscale).detectors)
-        return LayeredRun(path, scene, preset_name, config, levels)
+        return plan_layered(path, self.scene_path, preset_name, config, levels)[0]
+
+    def _continued(self, run: Run) -> Run:
+        """The opened run, checked as `edgedog train --resume` checks it (its scene unchanged)."""
+        if isinstance(run, LayeredRun):
+            return continue_layered(run.path, self.scene_path)[0]
+        return plan_run(run.path, self.scene_path, policy=CONTINUE).check().run
 
     def _worker(self, run: Run) -> TrainingWorker:
         """The worker that trains `run` and then writes what `edgedog train` writes after training."""
-        scene = self.scene_at(run_config(run).maps.downscale)
+        scene = self.training_scene(run_config(run))
         if isinstance(run, LayeredRun):
             return TrainingWorker(lambda: layer_trainers(run, scene, progress=False), self.runs,
                                   finish=lambda _: extract_layered(run, scene),

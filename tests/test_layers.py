@@ -4,6 +4,7 @@ figure and the studio's layer toggles."""
 from __future__ import annotations
 
 import json
+import shutil
 
 import cv2
 import numpy as np
@@ -170,6 +171,23 @@ def test_layered_run_resumes_extracts_and_exports(layered_run, builtin_scene_dir
 
 
 @pytest.mark.slow
+def test_a_layered_run_records_its_scene_and_resumes_only_on_it(layered_run, builtin_scene_dir,
+                                                               small_box_scene, tmp_path):
+    """layers.json and every layer's config.json hold the scene's fingerprint; --resume with a
+    scene of other cameras or images is refused, a copy of the same scene elsewhere is fine."""
+    run, _ = layered_run
+    recorded = json.loads((run / "layers.json").read_text())["scene_fingerprint"]
+    assert recorded and all(json.loads((run / name / "config.json").read_text())["scene_fingerprint"]
+                            == recorded for name in ("L0", "L1"))
+    other = edgedog("train", small_box_scene, "--out", run, "--resume", "--quiet")
+    assert other.returncode == 2 and "other cameras or images" in other.stderr, other.stderr
+    moved = tmp_path / "moved"
+    shutil.copytree(builtin_scene_dir, moved)
+    again = edgedog("train", moved, "--out", run, "--resume", "--quiet")
+    assert again.returncode == 0, again.stderr
+
+
+@pytest.mark.slow
 def test_the_layers_figure_has_a_column_per_stack(layered_run):
     from edgedog.renderer.gl.context import GLUnavailableError
 
@@ -231,6 +249,6 @@ def test_layers_bench_compares_the_stack_with_the_direct_run(builtin_scene_dir, 
                              figure=False)
     assert again["rows"] == results["rows"]
     assert (tmp_path / "direct" / "checkpoint.pt").stat().st_mtime_ns == stamp  # reused, not retrained
-    with pytest.raises(InputError, match="another scene, config or levels"):
+    with pytest.raises(InputError, match="another config or levels"):
         run_layers_bench(builtin_scene_dir, tmp_path, "preview", with_settings(config, {"run.seed": 1}),
                          levels, progress=False, figure=False)

@@ -8,38 +8,40 @@ from __future__ import annotations
 import dataclasses
 from pathlib import Path
 
-from edgedog.bench.ablation import train_and_extract
 from edgedog.bench.tables import cell
 from edgedog.errors import InputError
 from edgedog.files import atomic_write_bytes, atomic_write_json, read_json
+from edgedog.scenes import Scene
 from edgedog.settings import with_values
 from edgedog.train.config import TrainConfig
 from edgedog.train.layered import (
     LayeredRun,
+    continue_layered,
     extract_layered,
     is_layered,
-    read_layered,
+    plan_layered,
     train_layered,
     write_layered,
 )
-from edgedog.train.levels import Level, check_level_maps
-from edgedog.train.run_folder import RunFolder, RunLock, check_new_run_folder
+from edgedog.train.levels import Level
+from edgedog.train.run_folder import RunLock
 
 DIRECT = "direct"
 
 
 def layered_run(out: Path, scene_path: Path, preset_name: str, base: TrainConfig,
-                levels: tuple[Level, ...]) -> LayeredRun:
-    """OUT/layered: a new layered run, or the one an earlier bench left (which must match)."""
-    run = LayeredRun(out / "layered", scene_path.resolve(), preset_name, base, levels)
-    if is_layered(run.path):
-        if read_layered(run.path) != run:
-            raise InputError(run.path, "holds a layered run of another scene, config or levels; "
-                                       "choose another --out")
-    else:
-        check_new_run_folder(run.path)
+                levels: tuple[Level, ...]) -> tuple[LayeredRun, Scene]:
+    """OUT/layered: a new layered run, or the one an earlier bench left (which must match), and
+    the scene at the base resolution."""
+    path = out / "layered"
+    if not is_layered(path):
+        run, scene = plan_layered(path, scene_path, preset_name, base, levels)
         write_layered(run)
-    return run
+        return run, scene
+    run, scene = continue_layered(path, scene_path)
+    if (run.preset, run.base, run.levels) != (preset_name, base, levels):
+        raise InputError(run.path, "holds a layered run of another config or levels; choose another --out")
+    return run, scene
 
 
 def _row(name: str, primitives: int, report: dict) -> dict:
@@ -59,17 +61,17 @@ def run_layers_bench(scene_path: Path, out: Path, preset_name: str, base: TrainC
 def _layers_bench(scene_path: Path, out: Path, preset_name: str, base: TrainConfig,
                   levels: tuple[Level, ...], progress: bool, figure: bool) -> dict:
     """`run_layers_bench` under the lock of `out`."""
-    from edgedog.scenes import load_scene
+    from edgedog.train.lifecycle import REUSE, execute, plan_run
 
-    scene = load_scene(scene_path.resolve(), downscale=base.maps.downscale)
-    check_level_maps(levels, scene.detectors)
-    run = layered_run(out, scene_path, preset_name, base, levels)
+    run, scene = layered_run(out, scene_path, preset_name, base, levels)
     train_layered(run, scene, progress=progress)
     report = extract_layered(run, scene)
     rows = [_row(name, s["primitives"], s) for name, s in report["selections"].items()]
     finest = levels[-1]
     direct_config = with_values(base, {"maps.detector": finest.detector, "maps.floor": finest.floor})
-    log, direct = train_and_extract(RunFolder(out / DIRECT, run.scene, preset_name, direct_config), progress)
+    direct_plan = plan_run(out / DIRECT, run.scene, preset_name, direct_config, REUSE)
+    direct_run = execute(direct_plan, progress=progress)
+    log, direct = direct_run.log, direct_run.report
     rows.append(_row(f"direct ({finest.name} maps)", log["final_primitives"], direct))
     results = {"scene": str(run.scene), "preset": preset_name,
                "levels": [dataclasses.asdict(level) for level in levels], "rows": rows,

@@ -100,9 +100,8 @@ def train_and_report(plan, quiet: bool) -> None:
 
 def run_layered(args: argparse.Namespace) -> None:
     """`--layers`: progressive training of the levels, then curves per layer and cumulative."""
-    from edgedog.train.layered import LayeredRun, is_layered, read_layered, write_layered
-    from edgedog.train.levels import check_level_maps, resolve_levels
-    from edgedog.train.lifecycle import load_run_scene
+    from edgedog.train.layered import continue_layered, plan_layered, write_layered
+    from edgedog.train.levels import resolve_levels
     from edgedog.train.run_folder import RunLock, check_new_run_folder
 
     if args.resume:
@@ -110,25 +109,13 @@ def run_layered(args: argparse.Namespace) -> None:
             raise InputError(args.out, "--resume continues the layered run with its own layers; "
                                        "drop --layers")
         reject_settings_on_resume(args)
-        if not is_layered(args.out):
-            raise InputError(args.out, "no layered run to resume (layers.json is missing)")
-        run = read_layered(args.out)
-        scene = load_run_scene(args.scene, run.base)
-        if scene.root != run.scene.resolve():
-            raise InputError(args.out, f"was trained on {run.scene}, not {scene.root}; pass that scene")
+        run, scene = continue_layered(args.out, args.scene)
     else:
-        if is_layered(args.out):
-            raise InputError(args.out, "already holds a layered run; pass --resume to continue it, or "
-                                       "choose another --out")
-        check_new_run_folder(args.out)
         names = [name.strip() for name in (args.layers or "").split(",") if name.strip()]
         if not names:
             raise InputError(args.out, f"--layers {args.layers!r}: name at least one layer, e.g. L0,L1")
-        config = _config(args)
-        levels = resolve_levels(names, args.levels)
-        scene = load_run_scene(args.scene, config)
-        check_level_maps(levels, scene.detectors)
-        run = LayeredRun(args.out, scene.root, args.preset or DEFAULT_PRESET, config, levels)
+        run, scene = plan_layered(args.out, args.scene, args.preset or DEFAULT_PRESET, _config(args),
+                                  resolve_levels(names, args.levels))
     with RunLock.acquire(args.out):
         if not args.resume:
             check_new_run_folder(args.out)

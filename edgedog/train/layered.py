@@ -26,9 +26,9 @@ from edgedog.primitives import read_ply
 from edgedog.scenes import Scene
 from edgedog.settings import with_values
 from edgedog.train.config import DEFAULT_PRESET, PRESETS_RENAMED, TrainConfig, from_dict, is_flat, to_dict
-from edgedog.train.levels import Level
-from edgedog.train.lifecycle import is_finished
-from edgedog.train.run_folder import RUN_CONFIG, RunFolder, write_run
+from edgedog.train.levels import Level, check_level_maps
+from edgedog.train.lifecycle import check_scene_of_run, fingerprint, is_finished, load_run_scene
+from edgedog.train.run_folder import RUN_CONFIG, RunFolder, check_new_run_folder, write_run
 
 if TYPE_CHECKING:
     from edgedog.train.trainer import Trainer
@@ -40,13 +40,15 @@ REPORT = "layers_report.json"
 @dataclass(frozen=True)
 class LayeredRun:
     """path: the layered run folder; scene: the scene folder; preset: the preset named;
-    base: the config every layer starts from; levels: bottom first."""
+    base: the config every layer starts from; levels: bottom first; scene_fingerprint: of the
+    scene trained on (None in layered runs written before it was recorded)."""
 
     path: Path
     scene: Path
     preset: str
     base: TrainConfig
     levels: tuple[Level, ...]
+    scene_fingerprint: str | None = None
 
     def layer_dir(self, index: int) -> Path:
         return self.path / self.levels[index].name
@@ -63,8 +65,8 @@ def is_layered(path: Path) -> bool:
 
 def write_layered(run: LayeredRun) -> None:
     atomic_write_json(run.path / LAYERS_FILE, {
-        "scene": str(run.scene), "preset": run.preset, "config": to_dict(run.base),
-        "levels": [dataclasses.asdict(level) for level in run.levels]})
+        "scene": str(run.scene), "scene_fingerprint": run.scene_fingerprint, "preset": run.preset,
+        "config": to_dict(run.base), "levels": [dataclasses.asdict(level) for level in run.levels]})
 
 
 def read_layered(path: Path) -> LayeredRun:
@@ -75,7 +77,35 @@ def read_layered(path: Path) -> LayeredRun:
     preset = data.get("preset", DEFAULT_PRESET)
     if is_flat(data["config"]):  # written before the sections, when 'paper' named today's 'full'
         preset = PRESETS_RENAMED.get(preset, preset)
-    return LayeredRun(Path(path), Path(data["scene"]), preset, from_dict(data["config"]), levels)
+    recorded = data.get("scene_fingerprint")
+    if not isinstance(recorded, str | None):
+        raise InputError(Path(path) / LAYERS_FILE, f"'scene_fingerprint' must be a string, got {recorded!r}")
+    return LayeredRun(Path(path), Path(data["scene"]), preset, from_dict(data["config"]), levels, recorded)
+
+
+def plan_layered(out: Path, scene_path: Path, preset: str, base: TrainConfig,
+                 levels: tuple[Level, ...]) -> tuple[LayeredRun, Scene]:
+    """A new layered run of `levels` in `out` (a new or empty folder) and its scene at the base
+    resolution, checked as `lifecycle.plan_run` checks a run's (the maps of every level, readable
+    views); writes nothing."""
+    if is_layered(out):
+        raise InputError(out, "already holds a layered run; pass --resume to continue it, or choose "
+                              "another --out")
+    check_new_run_folder(out)
+    scene = load_run_scene(scene_path, base)
+    check_level_maps(levels, scene.detectors)
+    return LayeredRun(Path(out), scene.root, preset, base, levels, fingerprint(scene)), scene
+
+
+def continue_layered(out: Path, scene_path: Path) -> tuple[LayeredRun, Scene]:
+    """The layered run in `out` and `scene_path` loaded at its resolution, which must be the scene
+    it trained on (by fingerprint, or by folder for runs that recorded none)."""
+    if not is_layered(out):
+        raise InputError(out, "no layered run to resume (layers.json is missing)")
+    run = read_layered(out)
+    scene = load_run_scene(scene_path, run.base)
+    check_scene_of_run(run.path, run.scene, run.scene_fingerprint, scene)
+    return run, scene
 
 
 def layer_trainers(run: LayeredRun, scene: Scene, progress: bool = True) -> Iterator[Trainer]:
@@ -95,7 +125,7 @@ def layer_trainers(run: LayeredRun, scene: Scene, progress: bool = True) -> Iter
             lower = read_stack(folder)
             continue
         if not (folder / RUN_CONFIG).is_file():
-            write_run(RunFolder(folder, run.scene, run.preset, config))
+            write_run(RunFolder(folder, run.scene, run.preset, config, run.scene_fingerprint))
         trainer = Trainer(scene, config, folder, progress=progress, lower=lower)
         yield trainer
         lower = trainer.stack()

@@ -128,16 +128,17 @@ def fingerprint(scene: Scene) -> str:
     return scene_fingerprint(scene)
 
 
-def check_scene_of_run(run: RunFolder, scene: Scene) -> None:
-    """`scene` must be the scene `run` trained on: the same cameras and images (by fingerprint;
-    the folder may have moved), or, for runs that recorded no fingerprint, the same folder."""
-    if run.scene_fingerprint is None:
-        if scene.root != run.scene.resolve():
-            raise InputError(run.path, f"was trained on {run.scene}, not {scene.root}; pass that scene")
-    elif fingerprint(scene) != run.scene_fingerprint:
-        raise InputError(run.path, f"was trained on {run.scene} (fingerprint {run.scene_fingerprint}); "
-                                   f"{scene.root} has other cameras or images "
-                                   f"(fingerprint {fingerprint(scene)}); pass the run's scene")
+def check_scene_of_run(path: Path, trained_on: Path, trained_fingerprint: str | None, scene: Scene) -> None:
+    """`scene` must be the scene the run in `path` trained on (`trained_on`, with
+    `trained_fingerprint`): the same cameras and images (by fingerprint; the folder may have
+    moved), or, for runs that recorded no fingerprint, the same folder."""
+    if trained_fingerprint is None:
+        if scene.root != Path(trained_on).resolve():
+            raise InputError(path, f"was trained on {trained_on}, not {scene.root}; pass that scene")
+    elif fingerprint(scene) != trained_fingerprint:
+        raise InputError(path, f"was trained on {trained_on} (fingerprint {trained_fingerprint}); "
+                               f"{scene.root} has other cameras or images "
+                               f"(fingerprint {fingerprint(scene)}); pass the run's scene")
 
 
 def _checkpoint_step(path: Path) -> int:
@@ -202,7 +203,7 @@ def plan_run(out: Path, scene: str | Path, preset: str = DEFAULT_PRESET, config:
         if policy == CONTINUE:
             _check_continuable(out)
             run = read_run(out)
-            check_scene_of_run(run, load_run_scene(scene, run.config))
+            check_scene_of_run(run.path, run.scene, run.scene_fingerprint, load_run_scene(scene, run.config))
             return _folder_plan(run, policy)
         if policy == START:
             _folder_plan(pending, policy)  # a refused folder is reported before the scene is read
