@@ -1,15 +1,19 @@
-"""`edgedog bench speed-error`: rows per budget and evaluation, the summary files, reuse, resume,
-evaluation that leaves training unchanged, and one-line errors."""
+"""`edgedog bench speed-error`: rows per budget, seed and evaluation (runs of a batch, in this
+process), the summary files, reuse, resume, evaluation that leaves training unchanged, seeds, and
+one-line errors."""
 
 from __future__ import annotations
 
 import csv
 import dataclasses
 import shutil
+import sys
 
 import cv2
 import pytest
 
+from edgedog.batch.executors import SequentialExecutor
+from edgedog.batch.outcome import SKIPPED
 from edgedog.bench import speed_error
 from edgedog.bench.speed_error import (
     SUMMARY,
@@ -33,11 +37,23 @@ def without_seconds(points) -> list[dict]:
     return [{k: v for k, v in dataclasses.asdict(p).items() if k != "seconds"} for p in points]
 
 
+def speed(scene, out, budgets: str, overrides=TINY, evals: int = 2, seeds=(0,)):
+    """The bench's result, its runs one after another in this process."""
+    return run_speed_error(scene, out, parse_budgets(budgets), overrides, SequentialExecutor(), evals, seeds)
+
+
 @pytest.fixture(scope="module")
 def bench(builtin_scene_dir, tmp_path_factory):
-    """The two tiny budgets trained and evaluated twice each; (out folder, results)."""
+    """The two tiny budgets trained and evaluated twice each; (out folder, results, run folders)."""
     out = tmp_path_factory.mktemp("speed_error")
-    return out, run_speed_error(builtin_scene_dir, out, parse_budgets(BUDGETS), TINY, evals=2, progress=False)
+    result = speed(builtin_scene_dir, out, BUDGETS)
+    return out, result.results, [out / o.spec.name for o in result.batch.outcomes]
+
+
+@pytest.fixture
+def no_ray(monkeypatch):
+    """Ray not installed: the command runs the bench in this process."""
+    monkeypatch.setitem(sys.modules, "ray", None)
 
 
 def test_budgets_and_evaluation_epochs():
@@ -55,9 +71,10 @@ def test_budgets_and_evaluation_epochs():
 
 @pytest.mark.slow
 def test_rows_scores_and_summary_files(bench):
-    out, results = bench
+    out, results, runs = bench
     with open(out / "speed_error.csv", newline="") as file:
         rows = list(csv.DictReader(file))
+    assert {row["seed"] for row in rows} == {"0"}
     assert [(r["budget"], int(r["epoch"])) for r in rows] == [("preview-d4", 3), ("preview-d4", 6),
                                                                ("preview-50", 2), ("preview-50", 3)]
     for budget in ("preview-d4", "preview-50"):
@@ -75,17 +92,20 @@ def test_rows_scores_and_summary_files(bench):
         assert 0 < float(row["points_fscore_10mm"]) <= 100
     assert all(int(rows[i]["curves"]) > 0 for i in (1, 3))  # each budget ends with scored curves
     table = (out / "speed_error.md").read_text()
-    assert table.count("| preview-d4 | 100x100 | 6/6 |") == 2 and table.count("| preview-50 | 100x100 |") == 3
+    assert table.count("| preview-d4 | 0 | 100x100 | 6/6 |") == 2
+    assert table.count("| preview-50 | 0 | 100x100 |") == 3
     image = cv2.imread(str(out / "speed_error.png"))
     assert image is not None and image.shape[0] > 300 and image.shape[1] > 600
     coloured = (image.max(axis=2).astype(int) - image.min(axis=2)) > 60  # the budgets' lines
     assert coloured.sum() > 200 and image.std() > 10
-    assert read_json(out / "preview-d4" / "log.json")["final_primitives"] == results[0].points[-1].primitives
+    assert runs[0].name.startswith("box_preview_preview-d4_") and runs[0].name.endswith("_seed0")
+    assert read_json(runs[0] / "log.json")["final_primitives"] == results[0].points[-1].primitives
+    assert len(read_json(out / "batch.json")["configurations"]) == 2
 
 
 @pytest.mark.slow
-def test_a_second_invocation_reuses_every_budget(bench, builtin_scene_dir, monkeypatch, capsys):
-    out, results = bench
+def test_a_second_invocation_reuses_every_budget(bench, builtin_scene_dir, monkeypatch, capsys, no_ray):
+    out = bench[0]
     stamps = {p: p.stat().st_mtime_ns for p in out.glob("*/checkpoint.pt")}
 
     def no_training(*args, **kwargs):
@@ -96,7 +116,7 @@ def test_a_second_invocation_reuses_every_budget(bench, builtin_scene_dir, monke
             "--evals", "2", "--quiet"] + [a for kv in TINY for a in ("--set", kv)]
     assert main(args) == 0
     printed = capsys.readouterr().out
-    assert "| preview-50 | 100x100 | 3/3 |" in printed and str(out / SUMMARY[2]) in printed
+    assert "| preview-50 | 0 | 100x100 | 3/3 |" in printed and str(out / SUMMARY[2]) in printed
     assert stamps and stamps == {p: p.stat().st_mtime_ns for p in out.glob("*/checkpoint.pt")}
 
 
@@ -122,24 +142,38 @@ def test_a_killed_bench_resumes_to_the_rows_of_an_uninterrupted_one(bench, built
         return point
 
     monkeypatch.setattr(speed_error, "evaluate", evaluate_then_die_mid_epoch)
-    budgets = parse_budgets("preview-50")
     with pytest.raises(Killed):
-        run_speed_error(builtin_scene_dir, tmp_path, budgets, TINY, evals=2, progress=False)
-    assert [p["epoch"] for p in read_json(tmp_path / "preview-50" / "speed_error.json")["points"]] == [2]
+        speed(builtin_scene_dir, tmp_path, "preview-50")
+    (saved,) = tmp_path.glob("*/speed_error.json")
+    assert [p["epoch"] for p in read_json(saved)["points"]] == [2]
+    assert not (tmp_path / SUMMARY[0]).exists()
     monkeypatch.undo()
-    resumed = run_speed_error(builtin_scene_dir, tmp_path, budgets, TINY, evals=2, progress=False)
-    assert without_seconds(resumed[0].points) == without_seconds(bench[1][1].points)
+    resumed = speed(builtin_scene_dir, tmp_path, "preview-50")
+    assert [o.state for o in resumed.batch.outcomes] == ["resume"]
+    assert without_seconds(resumed.results[0].points) == without_seconds(bench[1][1].points)
 
 
 @pytest.mark.slow
 def test_evaluating_along_the_way_leaves_training_unchanged(bench, builtin_scene_dir, tmp_path):
-    budgets = parse_budgets("preview-50")
-    once = run_speed_error(builtin_scene_dir, tmp_path, budgets, TINY, evals=1, progress=False)
-    assert without_seconds(once[0].points) == without_seconds(bench[1][1].points[-1:])
+    once = speed(builtin_scene_dir, tmp_path, "preview-50", evals=1)
+    assert without_seconds(once.results[0].points) == without_seconds(bench[1][1].points[-1:])
+
+
+def test_seeds_are_runs_of_their_own_and_a_finished_bench_is_read_back(small_box_scene, tmp_path):
+    first = speed(small_box_scene, tmp_path, "preview-50", evals=1, seeds=(0, 1))
+    assert [(r.budget, r.seed) for r in first.results] == [("preview-50", 0), ("preview-50", 1)]
+    assert [o.spec.name[-6:] for o in first.batch.outcomes] == ["_seed0", "_seed1"]
+    assert first.results[0].points[0].epoch == first.results[0].epochs == 3
+    with open(tmp_path / "speed_error.csv", newline="") as file:
+        assert [row["seed"] for row in csv.DictReader(file)] == ["0", "1"]
+    (configuration,) = read_json(tmp_path / "batch.json")["configurations"]
+    assert configuration["seeds"] == "0 1" and configuration["runs"] == 2
+    again = speed(small_box_scene, tmp_path, "preview-50", evals=1, seeds=(0, 1))
+    assert [o.state for o in again.batch.outcomes] == [SKIPPED, SKIPPED] and again.results == first.results
 
 
 @pytest.mark.slow
-def test_bad_input_is_one_line(builtin_scene_dir, bench, tmp_path, capsys):
+def test_bad_input_is_one_line(builtin_scene_dir, bench, tmp_path, capsys, no_ray):
     def error(*extra) -> str:
         assert main(["bench", "speed-error", *map(str, extra), "--quiet"]) == 2
         message = capsys.readouterr().err
@@ -153,9 +187,6 @@ def test_bad_input_is_one_line(builtin_scene_dir, bench, tmp_path, capsys):
     shutil.copytree(builtin_scene_dir, bare, ignore=shutil.ignore_patterns("gt"))
     assert "needs a scene with ground truth" in error(bare, "--out", tmp_path / "b",
                                                       "--budgets", "preview-d4")
-    assert not (tmp_path / "b" / "preview-d4" / "checkpoint.pt").exists()
-    d4 = parse_budgets("preview-d4")
+    assert not (tmp_path / "b").exists()
     with pytest.raises(InputError, match="holds evaluations at epochs"):
-        run_speed_error(builtin_scene_dir, bench[0], d4, TINY, evals=3, progress=False)
-    with pytest.raises(InputError, match="another scene or configuration"):
-        run_speed_error(builtin_scene_dir, bench[0], d4, TINY[1:], progress=False)
+        speed(builtin_scene_dir, bench[0], "preview-d4", evals=3)

@@ -1,10 +1,10 @@
 """Where a batch's runs execute: one after another in this process, or as Ray tasks.
 
-Both take (spec, plan) jobs planned by the driver (`edgedog.batch.runner`) and yield each run's
-`RunOutcome` as it finishes. A run executes under its folder's lock (`lifecycle.execute`), which
-re-reads the folder: a task Ray retries after its worker died resumes from the run's checkpoint.
-Each run gets `cpus_per_run` threads (torch, OpenMP, MKL, OpenBLAS), so runs never oversubscribe
-the cores that Ray hands out by `num_cpus`.
+Both take jobs planned by the driver (`edgedog.batch.runner`), carry each out through its task
+(`edgedog.batch.jobs`) and yield each run's `RunOutcome` as it finishes. A task works under its
+run folder's lock and re-reads the folder: a task Ray retries after its worker died resumes from
+the run's checkpoint. Each run gets `cpus_per_run` threads (torch, OpenMP, MKL, OpenBLAS), so
+runs never oversubscribe the cores that Ray hands out by `num_cpus`.
 """
 
 from __future__ import annotations
@@ -18,10 +18,9 @@ from collections.abc import Iterator, Sequence
 from contextlib import contextmanager, nullcontext
 from dataclasses import dataclass
 
+from edgedog.batch.jobs import Job
 from edgedog.batch.outcome import RunOutcome
-from edgedog.batch.suite import RunSpec
 from edgedog.errors import ConfigError, EdgeDogError
-from edgedog.train.lifecycle import RunPlan
 
 INSTALL_HINT = "pip install 'edgedog[cluster]'"
 MAX_RETRIES = 3
@@ -29,27 +28,16 @@ MAX_RETRIES = 3
 THREAD_VARIABLES = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS")
 
 
-@dataclass(frozen=True)
-class Job:
-    """A run to execute: its spec and the plan the driver made for it."""
-
-    spec: RunSpec
-    plan: RunPlan
-
-
 def run_job(job: Job, threads: int) -> RunOutcome:
-    """Execute one planned run with `threads` torch threads; a user error (e.g. a detector with
-    no calibration) ends the run with its message, not the batch."""
+    """Carry out `job` through its task with `threads` torch threads; a user error (e.g. a
+    detector with no calibration) ends the run with its message, not the batch."""
     import torch
-
-    from edgedog.train.lifecycle import execute
 
     torch.set_num_threads(threads)
     try:
-        result = execute(job.plan, progress=False)
+        return job.task.run(job)
     except EdgeDogError as error:
         return RunOutcome(job.spec, job.plan.state, error=str(error))
-    return RunOutcome(job.spec, result.plan.state, result.plan.step, result.log, result.report)
 
 
 @dataclass(frozen=True)
@@ -70,11 +58,26 @@ class SequentialExecutor:
             torch.set_num_threads(threads)
 
 
-def require_ray() -> None:
-    """ConfigError saying how to install Ray when it is not installed; imports nothing (Ray reads
-    its token settings when it is imported)."""
-    if importlib.util.find_spec("ray") is None:
-        raise ConfigError(f"edgedog batch runs on Ray, which is not installed: {INSTALL_HINT}")
+def ray_installed() -> bool:
+    """Whether Ray can be imported; imports nothing (Ray reads its token settings when it is
+    imported)."""
+    return importlib.util.find_spec("ray") is not None
+
+
+def require_ray(needs: str = "edgedog batch runs on Ray") -> None:
+    """ConfigError (`needs`, then how to install Ray) when Ray is not installed; imports nothing."""
+    if not ray_installed():
+        raise ConfigError(f"{needs}, which is not installed: {INSTALL_HINT}")
+
+
+def choose_executor(address: str | None, cpus_per_run: int) -> SequentialExecutor | RayExecutor:
+    """The benchmarks' executor: Ray at `address`; without one, Ray started on this machine when
+    it is installed, else this process, one run after another (ConfigError: an address without Ray)."""
+    if address is not None:
+        require_ray(f"--address {address} needs Ray")
+    if address is None and not ray_installed():
+        return SequentialExecutor(cpus_per_run)
+    return RayExecutor(address, cpus_per_run)
 
 
 def import_ray():

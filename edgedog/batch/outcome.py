@@ -17,7 +17,9 @@ class RunOutcome:
     spec: the run; state: how its worker found the folder under its lock ('new', 'resume': from
     its checkpoint at `step`, 'finished': only extracted) or SKIPPED; step: the step training
     started from; log: its log.json ({} when it failed); report: its extract.json ({} when it
-    failed); error: the one-line user error that stopped it ('' when it ran).
+    failed); error: the one-line user error that stopped it ('' when it ran); extra: what its
+    task gave back besides (plain data, e.g. a benchmark's evaluations along training; None for
+    the batch's own task and a failed run).
     """
 
     spec: RunSpec
@@ -26,3 +28,4 @@ class RunOutcome:
     log: dict | None = None
     report: dict | None = None
     error: str = ""
+    extra: dict | None = None

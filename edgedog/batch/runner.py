@@ -15,13 +15,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Protocol
 
-from edgedog.batch.executors import Job
-from edgedog.batch.outcome import SKIPPED, RunOutcome
+from edgedog.batch.jobs import Job, Task, TrainAndExtract
+from edgedog.batch.outcome import RunOutcome
 from edgedog.batch.suite import RunSpec
 from edgedog.batch.table import write_tables
 from edgedog.errors import ConfigError, InputError
-from edgedog.files import read_json
-from edgedog.train.lifecycle import FINISHED, LOG, REUSE, plan_run
+from edgedog.train.lifecycle import REUSE, plan_run
 from edgedog.train.run_folder import RunLock, is_run_folder
 
 
@@ -44,43 +43,41 @@ class BatchResult:
         return [outcome for outcome in self.outcomes if outcome.error]
 
 
-def plan_jobs(specs: list[RunSpec], out: Path, suite_path: Path) -> list[Job]:
-    """Each run's plan in out/<run name>; the first run that cannot be planned is one error
-    naming the suite (a setting) or the folder (a folder holding something else)."""
+def plan_jobs(specs: list[RunSpec], out: Path, suite_path: Path | None = None,
+              task: Task | None = None) -> list[Job]:
+    """Each run's plan in out/<run name>, to be carried out by `task` (default: train and
+    extract); the first run that cannot be planned is one error naming the suite (a setting; a
+    ConfigError without a suite) or the folder (a folder holding something else)."""
     jobs = []
     for spec in specs:
         try:
             config = spec.config()
         except ConfigError as error:
+            if suite_path is None:
+                raise
             raise InputError(suite_path, f"run {spec.name}: {error}") from None
-        jobs.append(Job(spec, plan_run(out / spec.name, spec.scene, spec.preset, config, REUSE).check()))
+        plan = plan_run(out / spec.name, spec.scene, spec.preset, config, REUSE).check()
+        jobs.append(Job(spec, plan, task or TrainAndExtract()))
     return jobs
 
 
-def finished_outcome(job: Job) -> RunOutcome | None:
-    """The outcome of a run already finished and extracted, read from its folder; else None."""
-    from edgedog.curves.report import REPORT
-
-    plan = job.plan
-    if plan.state != FINISHED or not plan.extracted:
-        return None
-    path = plan.run.path
-    return RunOutcome(job.spec, SKIPPED, plan.step, read_json(path / LOG), read_json(path / REPORT))
-
-
-def run_batch(specs: list[RunSpec], out: Path, executor: Executor, suite_path: Path,
-              report: Callable[[int, int, RunOutcome], None] | None = None) -> BatchResult:
-    """Plan, execute and tabulate `specs` into `out` (locked throughout); `report(done, total,
-    outcome)` is called as each run finishes (skipped ones first)."""
+def run_batch(specs: list[RunSpec], out: Path, executor: Executor, suite_path: Path | None = None,
+              report: Callable[[int, int, RunOutcome], None] | None = None,
+              task: Task | None = None,
+              summarise: Callable[[list[RunOutcome]], list[Path]] | None = None) -> BatchResult:
+    """Plan, execute (each run through `task`, default train and extract) and tabulate `specs`
+    (their names unique) into `out` (locked throughout); `report(done, total, outcome)` is
+    called as each run finishes (skipped ones first). `summarise(outcomes)`, a benchmark's own
+    tables, is called with `out` still locked; the files it returns are the result's too."""
     out = Path(out).resolve()
     if is_run_folder(out):
         raise InputError(out, "is a training run; give the batch a folder of its own")
     with RunLock.acquire(out):
-        jobs = plan_jobs(specs, out, suite_path)
+        jobs = plan_jobs(specs, out, suite_path, task)
         outcomes: dict[str, RunOutcome] = {}
         left = []
         for job in jobs:
-            done = finished_outcome(job)
+            done = job.task.reuse(job)
             if done is None:
                 left.append(job)
             else:
@@ -93,4 +90,5 @@ def run_batch(specs: list[RunSpec], out: Path, executor: Executor, suite_path: P
             if report is not None:
                 report(len(outcomes), len(jobs), outcome)
         ordered = [outcomes[spec.name] for spec in specs]
-        return BatchResult(ordered, write_tables(out, ordered))
+        files = write_tables(out, ordered)
+        return BatchResult(ordered, files + (summarise(ordered) if summarise is not None else []))

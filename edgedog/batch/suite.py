@@ -27,7 +27,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from edgedog.errors import ConfigError, InputError
-from edgedog.train.config import DEFAULT_PRESET, MAX_SEED, PRESETS, preset, with_overrides
+from edgedog.settings import setting_paths, value_at
+from edgedog.train.config import DEFAULT_PRESET, MAX_SEED, PRESETS, TrainConfig, preset, with_overrides
 
 MAX_RUNS = 10_000
 """Runs one suite may expand to: a grid of a few settings with several values each multiplies fast."""
@@ -136,17 +137,38 @@ def expand(suite: Suite, limit: int = MAX_RUNS) -> list[RunSpec]:
     combinations = itertools.product(*(values for _, values in suite.grid))
     grid = [tuple(f"{key}={value}" for key, value in zip(names, combination)) for combination in combinations]
     rows = suite.rows or ((None, ()),)
-    specs = []
-    for scene, preset_name, grid_changes, (row, row_changes), seed in itertools.product(
-            suite.scenes, suite.presets, grid, rows, suite.seeds):
-        changes = grid_changes + row_changes
-        overrides = suite.common + changes
-        configuration = "_".join([_folder_name(scene.name), preset_name, *([row] if row else []),
-                                  _digest(overrides)])
-        specs.append(RunSpec(f"{configuration}_seed{seed}", configuration, scene, preset_name, row, changes,
-                             (*overrides, f"seed={seed}"), seed))
+    specs = [make_spec(scene, preset_name, row, suite.common, grid_changes + row_changes, seed)
+             for scene, preset_name, grid_changes, (row, row_changes), seed in itertools.product(
+                 suite.scenes, suite.presets, grid, rows, suite.seeds)]
     _check_unique_names(specs, suite.path)
     return specs
+
+
+def make_spec(scene: Path, preset_name: str, row: str | None, common: tuple[str, ...],
+              changes: tuple[str, ...], seed: int) -> RunSpec:
+    """The run of `preset_name` with the overrides `common`, then `changes`, then the seed (its
+    name as `RunSpec` says)."""
+    overrides = common + changes
+    configuration = "_".join([_folder_name(scene.name), preset_name, *([row] if row else []),
+                              _digest(overrides)])
+    return RunSpec(f"{configuration}_seed{seed}", configuration, scene, preset_name, row, changes,
+                   (*overrides, f"seed={seed}"), seed)
+
+
+def config_changes(config: TrainConfig, base: TrainConfig) -> tuple[str, ...]:
+    """The KEY=VALUE overrides that turn `base` into `config`: each setting whose value differs,
+    by dotted name, in the settings' order."""
+    return tuple(f"{path}={setting_text(value_at(config, path))}" for path in setting_paths(TrainConfig)
+                 if value_at(config, path) != value_at(base, path))
+
+
+def spec_of_config(scene: Path, preset_name: str, row: str, base: TrainConfig, config: TrainConfig,
+                   seed: int) -> RunSpec:
+    """The run of `config` (seed aside) as a suite row `row` on top of `base`: its common
+    overrides turn the preset into `base`, its changes `base` into `config`, so runs of equal
+    configs get one name whatever overrides made them."""
+    return make_spec(scene, preset_name, row, config_changes(base, preset(preset_name)),
+                     config_changes(config, base), seed)
 
 
 def _check_unique_names(specs: list[RunSpec], path: Path) -> None:
@@ -204,10 +226,13 @@ def _presets(value, path: Path) -> tuple[str, ...]:
     return tuple(dict.fromkeys(names))
 
 
-def _setting_text(value) -> str:
-    """A YAML scalar as --set text: booleans true/false, numbers and strings as written."""
+def setting_text(value) -> str:
+    """A setting's value (or a YAML scalar) as --set text that reads back as it: booleans
+    true/false, lists comma-separated, numbers, strings and None as Python writes them."""
     if isinstance(value, bool):
         return "true" if value else "false"
+    if isinstance(value, (tuple, list)):
+        return ",".join(setting_text(item) for item in value)
     return str(value)
 
 
@@ -220,7 +245,7 @@ def _grid(value, path: Path) -> tuple[tuple[str, tuple[str, ...]], ...]:
                 isinstance(item, list | dict) or item is None for item in values):
             raise InputError(path, f"grid.{key}: expected a non-empty list of values (numbers, strings, "
                                    "true/false)")
-        texts = tuple(dict.fromkeys(_setting_text(item) for item in values))
+        texts = tuple(dict.fromkeys(setting_text(item) for item in values))
         grid.append((str(key), texts))
     return tuple(grid)
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 import csv
 import io
 import math
+import textwrap
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -132,7 +133,7 @@ def plot_png(configurations: list[dict]) -> bytes:
     from matplotlib.figure import Figure
 
     count = len(configurations)
-    figure = Figure(figsize=(max(6.0, 1.0 + 0.8 * count), 5.5), layout="constrained")
+    figure = Figure(figsize=(max(7.0, 1.0 + 1.2 * count), 5.5), layout="constrained")
     FigureCanvasAgg(figure)
     axes = figure.subplots(1, 2)
     positions = list(range(count))
@@ -141,8 +142,9 @@ def plot_png(configurations: list[dict]) -> bytes:
         means = [row[f"{key}_mean"] for row in configurations]
         spreads = [row[f"{key}_std"] or 0.0 for row in configurations]
         axis.bar(positions, [math.nan if m is None else m for m in means], yerr=spreads, capsize=3)
-        axis.set_xticks(positions, [label(row) for row in configurations], rotation=30, ha="right",
-                        fontsize=8)
+        # Wrapped: a label of a row and its changes is long, and would squeeze the panels to nothing.
+        axis.set_xticks(positions, [textwrap.fill(label(row), 28) for row in configurations], rotation=30,
+                        ha="right", fontsize=8)
         axis.set_ylabel(title)
         axis.grid(True, axis="y", alpha=0.3)
         if all(m is None for m in means):

@@ -1,22 +1,28 @@
 """`edgedog bench ablation`: the paper's Table 3 (EdgeDoG's components, baseline to full),
 Table 4 (pixel-uncertainty weighting functions) and the corrections of the pseudo-edge maps'
-bias, each row a training run whose extracted curves are scored against the ground truth.
+bias, each row a training run per seed whose extracted curves are scored against the ground truth.
 
-Rows whose configurations train identically (weighting 1 with the pixel-level term on is the
-same loss as with it off) share one run, so a table never reports two numbers for one model.
+The rows become the runs of a batch (`edgedog.batch.runner.run_batch`), executed in this process
+or on Ray like `edgedog batch`, each in its own run folder under OUT. Rows whose configurations
+train identically (weighting 1 with the pixel-level term on is the same loss as with it off)
+share one run per seed, so a table never reports two numbers for one model.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-from edgedog.bench.tables import cell
+from edgedog.batch.outcome import RunOutcome
+from edgedog.batch.runner import BatchResult, Executor, run_batch
+from edgedog.batch.suite import RunSpec, spec_of_config
+from edgedog.batch.table import mean_and_spread
+from edgedog.bench.tables import spread_cell
 from edgedog.errors import ConfigError, InputError
 from edgedog.files import atomic_write_bytes, atomic_write_json
 from edgedog.settings import with_values
-from edgedog.train.config import TrainConfig
-from edgedog.train.run_folder import RunFolder, RunLock
+from edgedog.train.config import TrainConfig, preset, with_overrides
 
 COMPONENTS = "components"
 WEIGHTING = "weighting"
@@ -110,7 +116,8 @@ def effective_config(config: TrainConfig) -> TrainConfig:
 
 
 def run_name(config: TrainConfig) -> str:
-    """A folder name for a run, from the components it uses."""
+    """A run's row in its folder name (`<scene>_<preset>_<row>_<digest>_seed<N>`), from the
+    components it uses."""
     maps, loss = config.maps, config.loss
     parts = [config.model.kernel, f"pix-{loss.weighting}" if loss.pixel_uncertainty else "nopix",
              "fisher" if config.strategy.primitive_uncertainty else "nofisher"]
@@ -120,84 +127,133 @@ def run_name(config: TrainConfig) -> str:
     return "_".join(parts)
 
 
-def train_and_extract(run: RunFolder, progress: bool) -> tuple[dict, dict]:
-    """Train (or resume, or reuse a finished) `run`, then extract and score its curves unless a
-    finished run has them; returns its log.json and extraction report."""
-    from edgedog.train.lifecycle import REUSE, execute, plan_run
-
-    result = execute(plan_run(run.path, run.scene, run.preset, run.config, REUSE), progress=progress)
-    return result.log, result.report
-
-
-def run_ablation(scene_path: Path, out: Path, preset_name: str, base: TrainConfig,
-                 tables: tuple[str, ...] = TABLES, progress: bool = True,
-                 keys: tuple[str, ...] | None = None) -> list[dict]:
-    """Train and score every row of the chosen tables, or the rows with `keys` among them (runs
-    shared where configs coincide) in out/<run name>/; `base` is the preset `preset_name` with
-    any overrides. Writes out/ablation.json and out/ablation.md once every row is done (a killed
-    bench resumes from the rows' run folders); returns the rows' results. `out` is locked
-    throughout: one bench writes its tables at a time."""
-    with RunLock.acquire(out):
-        results = _run_rows(select_rows(tables, keys), scene_path, out, preset_name, base, progress)
-        write_report(out, results)
-    return results
+ABLATION_FILES = ("ablation.json", "ablation.md")
+"""The bench's own tables in OUT, beside the batch's."""
+VALUES = ("recall_5mm", "precision_5mm", "fscore_5mm", "fscore_10mm", "fscore_20mm", "acc_mm", "comp_mm",
+          "points_fscore_10mm", "curves", "train_seconds", "primitives", "map_shift_x", "map_shift_y",
+          "outline_offset_px")
+"""A run's values that a row reports, each as its mean and spread over the row's seeds."""
+_CURVE_SCORES = VALUES[:7]
 
 
-def _run_rows(rows: list[AblationRow], scene_path: Path, out: Path, preset_name: str, base: TrainConfig,
-              progress: bool) -> list[dict]:
-    results = []
-    for row in rows:
-        config = effective_config(with_values(base, row.changes))
-        folder = out / run_name(config)
-        run = RunFolder(folder, scene_path.resolve(), preset_name, config)
-        try:
-            log, report = train_and_extract(run, progress)
-        except ConfigError as error:  # e.g. no calibration record for these maps' detector
-            results.append({"table": row.table, "label": row.label, "run": folder.name,
-                            "skipped": str(error)})
-            continue
-        if "metrics" not in report:
-            raise InputError(scene_path, "the ablation needs a scene with ground truth")
-        results.append({"table": row.table, "label": row.label, "run": folder.name,
-                        "metrics": report["metrics"].get("curves"),  # None: no curve to score
-                        "points_fscore_10mm": report["metrics"].get("points", {}).get("fscore_10mm"),
-                        "curves": report["counts"]["lines"] + report["counts"]["beziers"],
-                        "train_seconds": log["train_seconds"], "primitives": log["final_primitives"],
-                        "map_shift_px": log.get("map_shift_px"),
-                        "outline_offset_px": (log.get("silhouette_correction") or {}).get("offset_px")})
-    return results
+@dataclass(frozen=True)
+class AblationResult:
+    """rows: each ablation row's results (`row_result`), in table order; batch: the runs."""
+
+    rows: list[dict]
+    batch: BatchResult
+
+
+def row_specs(scene: Path, preset_name: str, base: TrainConfig, row: AblationRow,
+              seeds: tuple[int, ...]) -> list[RunSpec]:
+    """The row's runs, one per seed: `base` with the row's changes, normalised by
+    `effective_config`, so rows of one effective configuration name the same runs."""
+    config = effective_config(with_values(base, row.changes))
+    return [spec_of_config(scene, preset_name, run_name(config), base, config, seed) for seed in seeds]
+
+
+def run_ablation(scene_path: Path, out: Path, preset_name: str, overrides: list[str], rows: list[AblationRow],
+                 seeds: tuple[int, ...], executor: Executor,
+                 report: Callable[[int, int, RunOutcome], None] | None = None) -> AblationResult:
+    """Train and score each of `rows` once per seed (`preset_name` with `overrides`, then the
+    row's changes, then the seed) as a batch in `out`, each distinct run once, and write the
+    batch's tables and ABLATION_FILES there. A rerun reuses the finished runs and resumes the
+    others; `report` is the batch's progress callback."""
+    from edgedog.groundtruth import ground_truth_for
+
+    base = with_overrides(preset(preset_name), overrides)
+    scene = Path(scene_path).resolve()
+    if ground_truth_for(scene) is None:
+        raise InputError(scene_path, "the ablation needs a scene with ground truth")
+    specs = {row.key: row_specs(scene, preset_name, base, row, seeds) for row in rows}
+    runs = list({spec.name: spec for row_runs in specs.values() for spec in row_runs}.values())
+    results: list[dict] = []
+
+    def summarise(outcomes: list[RunOutcome]) -> list[Path]:
+        by_name = {outcome.spec.name: outcome for outcome in outcomes}
+        results.extend(row_result(row, [by_name[spec.name] for spec in specs[row.key]]) for row in rows)
+        return write_report(out, results)
+
+    batch = run_batch(runs, out, executor, report=report, summarise=summarise)
+    return AblationResult(results, batch)
+
+
+def run_values(outcome: RunOutcome) -> dict:
+    """The VALUES of a run that ran (None where there is none: no curve to score, no map shift)."""
+    metrics = (outcome.report or {}).get("metrics") or {}
+    curves, log = metrics.get("curves") or {}, outcome.log or {}
+    counts = (outcome.report or {}).get("counts") or {}
+    shift = log.get("map_shift_px") or [None, None]
+    return {**{key: curves.get(key) for key in _CURVE_SCORES},
+            "points_fscore_10mm": (metrics.get("points") or {}).get("fscore_10mm"),
+            "curves": counts.get("lines", 0) + counts.get("beziers", 0),
+            "train_seconds": log.get("train_seconds"), "primitives": log.get("final_primitives"),
+            "map_shift_x": shift[0], "map_shift_y": shift[1],
+            "outline_offset_px": (log.get("silhouette_correction") or {}).get("offset_px")}
+
+
+def row_result(row: AblationRow, outcomes: list[RunOutcome]) -> dict:
+    """A row from its runs (one per seed): table, key, label, configuration, runs (folder names),
+    seeds, errors (of the runs that failed), and `<value>_mean`, `<value>_std` for each of the
+    VALUES over the runs that ran and have it (std: the sample standard deviation, None for
+    fewer than two)."""
+    ran = [run_values(outcome) for outcome in outcomes if not outcome.error]
+    result = {"table": row.table, "key": row.key, "label": row.label,
+              "configuration": outcomes[0].spec.configuration,
+              "runs": [outcome.spec.name for outcome in outcomes], "seeds": [o.spec.seed for o in outcomes],
+              "errors": [outcome.error for outcome in outcomes if outcome.error]}
+    for key in VALUES:
+        result[f"{key}_mean"], result[f"{key}_std"] = mean_and_spread(
+            [values[key] for values in ran if values[key] is not None])
+    return result
+
+
+def _cells(result: dict, keys: tuple[str, ...], digits: int) -> list[str]:
+    return [spread_cell(result[f"{key}_mean"], result[f"{key}_std"], digits) for key in keys]
+
+
+def _shift_cell(result: dict) -> str:
+    """The map shift (x, y) in px, signed; no shift learned or calibrated reads as 0."""
+    return ", ".join(spread_cell(result[f"map_shift_{axis}_mean"] or 0.0, result[f"map_shift_{axis}_std"], 2,
+                                 sign="+") for axis in "xy")
 
 
 def markdown(results: list[dict]) -> str:
-    """The tables as Markdown, rows in the order given; a skipped row says why."""
+    """The tables as Markdown, rows in the order given, each cell the mean ± the sample standard
+    deviation over the row's seeds (the value alone for one seed); a row whose runs all failed
+    says why."""
     lines = []
     for table in TABLES:
         rows = [r for r in results if r["table"] == table]
         if not rows:
             continue
         shifts = table == CORRECTIONS
-        lines += [f"**{TITLES[table]}**", "",
+        seeds = rows[0]["seeds"]
+        over = f" (mean ± sample standard deviation over seeds {', '.join(map(str, seeds))})" \
+            if len(seeds) > 1 else ""
+        lines += [f"**{TITLES[table]}**{over}", "",
                   "| row | R5 | P5 | F5 | F10 | F20 | Acc (mm) | Comp (mm) | points F10 | curves | train (s) "
                   "| primitives |" + (" map shift (px) | outline offset (px) |" if shifts else ""),
                   "|---|---|---|---|---|---|---|---|---|---|---|---|" + ("---|---|" if shifts else "")]
         for r in rows:
-            if "skipped" in r:
-                lines.append(f"| {r['label']} | skipped: {r['skipped']} |")
+            if len(r["errors"]) == len(r["runs"]):
+                lines.append(f"| {r['label']} | skipped: {r['errors'][0]} |")
                 continue
-            m = r["metrics"] or {}
-            scores = [cell(m.get(key), 1) for key in
-                      ("recall_5mm", "precision_5mm", "fscore_5mm", "fscore_10mm", "fscore_20mm")]
-            scores += [cell(m.get("acc_mm"), 2), cell(m.get("comp_mm"), 2),
-                       cell(r["points_fscore_10mm"], 1)]
-            shift = r.get("map_shift_px") or [0.0, 0.0]
-            lines.append(f"| {r['label']} | {' | '.join(scores)} | {r['curves']} | "
-                         f"{r['train_seconds']:.0f} | {r['primitives']} |"
-                         + (f" {shift[0]:+.2f}, {shift[1]:+.2f} | {cell(r.get('outline_offset_px'), 2)} |"
-                            if shifts else ""))
+            failed = (f" ({len(r['errors'])} of {len(r['runs'])} runs failed: {r['errors'][0]})"
+                      if r["errors"] else "")
+            cells = (_cells(r, VALUES[:5], 1) + _cells(r, ("acc_mm", "comp_mm"), 2)
+                     + _cells(r, ("points_fscore_10mm",), 1)
+                     + _cells(r, ("curves", "train_seconds", "primitives"), 0))
+            if shifts:
+                cells += [_shift_cell(r), *_cells(r, ("outline_offset_px",), 2)]
+            lines.append(f"| {r['label']}{failed} | " + " | ".join(cells) + " |")
         lines.append("")
     return "\n".join(lines)
 
 
-def write_report(out: Path, results: list[dict]) -> None:
-    atomic_write_json(out / "ablation.json", results)
-    atomic_write_bytes(out / "ablation.md", markdown(results).encode())
+def write_report(out: Path, results: list[dict]) -> list[Path]:
+    """Write the ABLATION_FILES into `out` atomically; returns their paths."""
+    json_path, md_path = (Path(out) / name for name in ABLATION_FILES)
+    atomic_write_json(json_path, results)
+    atomic_write_bytes(md_path, markdown(results).encode())
+    return [json_path, md_path]

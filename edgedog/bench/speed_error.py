@@ -1,9 +1,11 @@
 """`edgedog bench speed-error`: how the error of the extracted curves falls as training time grows.
 
-Each budget (a preset, possibly at another resolution or with fewer epochs) trains once in
-OUT/<budget>/, an ordinary run folder. At evenly spaced epochs the trainer is paused, its curves
-are extracted and scored, and the row (training seconds so far, primitives, scores) is appended
-to OUT/<budget>/speed_error.json. OUT/speed_error.csv, .md and .png summarise every budget.
+Each budget (a preset, possibly at another resolution or with fewer epochs) trains once per seed,
+as a run of a batch (`edgedog.batch.runner.run_batch`, in this process or on Ray) in its own run
+folder under OUT, through the task `EvaluatedTraining`: at evenly spaced epochs the trainer is
+paused, its curves are extracted and scored, and the row (training seconds so far, primitives,
+scores) is appended to the folder's speed_error.json. Once every run is done, OUT/speed_error.csv,
+.md and .png summarise them, beside the batch's tables.
 
 Seconds are the trainer's own clock (steps and density control): checkpoints, extraction and
 scoring are not counted, so the numbers are what a plain `edgedog train` of that length costs.
@@ -11,20 +13,26 @@ scoring are not counted, so the numbers are what a plain `edgedog train` of that
 
 from __future__ import annotations
 
-import csv
 import dataclasses
 import io
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from edgedog.batch.jobs import Job
+from edgedog.batch.outcome import SKIPPED, RunOutcome
+from edgedog.batch.runner import BatchResult, Executor, run_batch
+from edgedog.batch.suite import RunSpec, spec_of_config
+from edgedog.batch.table import csv_text
 from edgedog.bench.tables import cell
 from edgedog.errors import ConfigError, InputError
 from edgedog.files import atomic_write_bytes, atomic_write_json, read_json
 from edgedog.settings import with_values
 from edgedog.train.config import TrainConfig, preset, with_epochs, with_overrides
-from edgedog.train.run_folder import RunFolder, RunLock, write_run
+from edgedog.train.lifecycle import LOG
+from edgedog.train.run_folder import RunLock, write_run
 
 if TYPE_CHECKING:  # torch and the scene loaders load only when a bench runs
     from edgedog.scenes import Scene
@@ -105,10 +113,10 @@ class EvalPoint:
 
 @dataclass
 class BudgetResult:
-    """One budget's evaluations so far, as saved in OUT/<budget>/speed_error.json.
+    """One run's evaluations so far (a budget at a seed), as saved in its folder's speed_error.json.
 
     resolution: the training images' size, e.g. '200x200'; eval_epochs: where the run is (to
-    be) evaluated; points: the evaluations done, in epoch order.
+    be) evaluated; points: the evaluations done, in epoch order; seed: the run's seed.
     """
 
     budget: str
@@ -116,6 +124,7 @@ class BudgetResult:
     resolution: str
     eval_epochs: list[int]
     points: list[EvalPoint]
+    seed: int = 0
 
     @property
     def finished(self) -> bool:
@@ -139,7 +148,6 @@ def read_result(folder: Path, eval_epochs: list[int]) -> BudgetResult | None:
     return result
 
 
-
 def evaluate(trainer: Trainer, scene: Scene) -> EvalPoint:
     """Checkpoint `trainer` (a resumed bench restarts from here), write its outputs, extract and
     score its curves (RUN/extract.json); returns the evaluation point."""
@@ -153,21 +161,43 @@ def evaluate(trainer: Trainer, scene: Scene) -> EvalPoint:
                      counts["lines"] + counts["beziers"], metrics.get("curves"), metrics.get("points"))
 
 
-def run_budget(run: RunFolder, budget: str, evals: int, progress: bool) -> BudgetResult:
-    """Train `run` (or resume it, or reuse it when every evaluation is recorded), evaluating it
-    at `evals` evenly spaced epochs; returns its evaluations."""
-    from edgedog.train.lifecycle import REUSE, plan_run, replan
+@dataclass(frozen=True)
+class EvaluatedTraining:
+    """The bench's task (`edgedog.batch.jobs.Task`): train the job's run, evaluating it at
+    `evals` evenly spaced epochs; its outcome's `extra` is the run's `BudgetResult` as a dict."""
 
-    plan = plan_run(run.path, run.scene, run.preset, run.config, REUSE).check()
-    with RunLock.acquire(run.path):
-        return _train_budget(replan(plan).check(), budget, evals, progress)
+    evals: int
+
+    def run(self, job: Job) -> RunOutcome:
+        from edgedog.train.lifecycle import replan
+
+        with RunLock.acquire(job.plan.run.path):
+            plan = replan(job.plan).check()
+            result = _train_budget(plan, job.spec.row or "", job.spec.seed, self.evals)
+        return _outcome(job, plan.state, plan.step, result)
+
+    def reuse(self, job: Job) -> RunOutcome | None:
+        """The outcome of a run evaluated at every epoch; InputError when its folder holds
+        evaluations at other epochs (another --evals)."""
+        run = job.plan.run
+        result = read_result(run.path, evaluation_epochs(run.config.schedule.epochs, self.evals))
+        if result is None or not result.finished:
+            return None
+        return _outcome(job, SKIPPED, job.plan.step, result)
 
 
-def _train_budget(plan: RunPlan, budget: str, evals: int, progress: bool) -> BudgetResult:
-    """`run_budget` under the run folder's lock."""
-    from tqdm import tqdm
+def _outcome(job: Job, state: str, step: int, result: BudgetResult) -> RunOutcome:
+    """The outcome of a run whose last evaluation wrote its log.json and extract.json."""
+    from edgedog.curves.report import REPORT
 
-    from edgedog.groundtruth import ground_truth_for
+    path = job.plan.run.path
+    return RunOutcome(job.spec, state, step, read_json(path / LOG), read_json(path / REPORT),
+                      extra=dataclasses.asdict(result))
+
+
+def _train_budget(plan: RunPlan, budget: str, seed: int, evals: int) -> BudgetResult:
+    """Train the run of `plan` (its folder locked), evaluating it at `evals` evenly spaced epochs
+    (those not recorded yet); returns its evaluations."""
     from edgedog.train.lifecycle import NEW, load_run_scene
     from edgedog.train.trainer import CHECKPOINT, Trainer
 
@@ -177,42 +207,67 @@ def _train_budget(plan: RunPlan, budget: str, evals: int, progress: bool) -> Bud
     if result is not None and result.finished:
         return result
     scene = load_run_scene(run.scene, run.config)
-    if ground_truth_for(scene.root) is None:
-        raise InputError(run.scene, "the speed-error bench needs a scene with ground truth")
     if plan.state == NEW:
         write_run(run)
-    trainer = Trainer(scene, run.config, run.path, progress)
+    trainer = Trainer(scene, run.config, run.path, progress=False)
     if result is None:
         camera = scene.camera(0)
         result = BudgetResult(budget, run.config.schedule.epochs, f"{camera.width}x{camera.height}",
-                              eval_epochs, [])
+                              eval_epochs, [], seed)
     recorded = {p.epoch for p in result.points}
-    with tqdm(total=run.config.schedule.epochs * len(scene), initial=trainer.step_index, unit="step",
-              disable=not progress, desc=budget) as bar:
-        for epoch in (e for e in eval_epochs if e not in recorded):
-            if trainer.epoch > epoch:
-                raise InputError(run.path / CHECKPOINT, f"is past epoch {epoch}, which was never "
-                                                        f"evaluated; remove {run.path} to train it again")
-            while trainer.epoch < epoch:
-                trainer.step()
-                bar.update(1)
-            result.points.append(evaluate(trainer, scene))
-            atomic_write_json(run.path / RESULT, dataclasses.asdict(result))
+    for epoch in (e for e in eval_epochs if e not in recorded):
+        if trainer.epoch > epoch:
+            raise InputError(run.path / CHECKPOINT, f"is past epoch {epoch}, which was never "
+                                                    f"evaluated; remove {run.path} to train it again")
+        while trainer.epoch < epoch:
+            trainer.step()
+        result.points.append(evaluate(trainer, scene))
+        atomic_write_json(run.path / RESULT, dataclasses.asdict(result))
     return result
 
 
+@dataclass(frozen=True)
+class SpeedErrorResult:
+    """results: each run's evaluations (the runs that did not fail), budgets in the order asked,
+    seeds within; batch: the runs."""
+
+    results: list[BudgetResult]
+    batch: BatchResult
+
+
+def budget_specs(scene: Path, budgets: list[Budget], overrides: list[str],
+                 seeds: tuple[int, ...]) -> list[RunSpec]:
+    """One run per budget and seed: the budget's preset with `overrides`, then its own change."""
+    specs = []
+    for budget in budgets:
+        base = with_overrides(preset(budget.preset), overrides)
+        config = budget.config(overrides)
+        specs += [spec_of_config(scene, budget.preset, budget.name, base, config, seed) for seed in seeds]
+    return specs
+
+
 def run_speed_error(scene_path: Path, out: Path, budgets: list[Budget], overrides: list[str],
-                    evals: int = 5, progress: bool = True) -> list[BudgetResult]:
-    """Train and evaluate every budget in out/<budget>/ (with `overrides` applied to each), and
-    write the summary files `SUMMARY` in `out` after each budget; returns the results."""
-    scene_path = Path(scene_path).resolve()
-    results = []
-    with RunLock.acquire(out):
-        for budget in budgets:
-            run = RunFolder(out / budget.name, scene_path, budget.preset, budget.config(overrides))
-            results.append(run_budget(run, budget.name, evals, progress))
-            write_summary(out, scene_path.name, results)
-    return results
+                    executor: Executor, evals: int = 5, seeds: tuple[int, ...] = (0,),
+                    report: Callable[[int, int, RunOutcome], None] | None = None) -> SpeedErrorResult:
+    """Train and evaluate every budget at every seed (with `overrides` applied to each) as a
+    batch in `out`, then write the batch's tables and the summary files `SUMMARY` there. A rerun
+    reuses the runs evaluated to their end and resumes the others; `report` is the batch's
+    progress callback."""
+    from edgedog.groundtruth import ground_truth_for
+
+    scene = Path(scene_path).resolve()
+    specs = budget_specs(scene, budgets, overrides, seeds)
+    if ground_truth_for(scene) is None:
+        raise InputError(scene_path, "the speed-error bench needs a scene with ground truth")
+    results: list[BudgetResult] = []
+
+    def summarise(outcomes: list[RunOutcome]) -> list[Path]:
+        results.extend(BudgetResult.from_dict(o.extra) for o in outcomes if o.extra is not None)
+        return write_summary(out, scene.name, results)
+
+    batch = run_batch(specs, out, executor, report=report,
+                      task=EvaluatedTraining(evals), summarise=summarise)
+    return SpeedErrorResult(results, batch)
 
 
 # --- summary: CSV, Markdown, plot
@@ -236,7 +291,7 @@ def csv_rows(results: list[BudgetResult]) -> list[dict]:
     for result in results:
         for p in result.points:
             curves, points = p.curve_scores or {}, p.point_scores or {}
-            rows.append({"budget": result.budget, "epoch": p.epoch, "seconds": p.seconds,
+            rows.append({"budget": result.budget, "seed": result.seed, "epoch": p.epoch, "seconds": p.seconds,
                          "primitives": p.primitives, "curves": p.curves, "acc_mm": curves.get("acc_mm"),
                          "comp_mm": curves.get("comp_mm"), "chamfer_mm": _chamfer(p.curve_scores),
                          **{key: curves.get(key) for key in rates},
@@ -245,38 +300,31 @@ def csv_rows(results: list[BudgetResult]) -> list[dict]:
     return rows
 
 
-def csv_text(results: list[BudgetResult]) -> str:
-    rows = csv_rows(results)
-    buffer = io.StringIO()
-    writer = csv.DictWriter(buffer, fieldnames=list(rows[0]), lineterminator="\n")
-    writer.writeheader()
-    writer.writerows(rows)  # None is written as an empty cell
-    return buffer.getvalue()
-
-
 def _markdown_row(result: BudgetResult, p: EvalPoint) -> str:
     s = p.curve_scores or {}
-    cells = [result.budget, result.resolution, f"{p.epoch}/{result.epochs}", f"{p.seconds:.1f}",
-             str(p.primitives), str(p.curves), cell(s.get("acc_mm"), 2), cell(s.get("comp_mm"), 2),
-             cell(_chamfer(p.curve_scores), 2)]
+    cells = [result.budget, str(result.seed), result.resolution, f"{p.epoch}/{result.epochs}",
+             f"{p.seconds:.1f}", str(p.primitives), str(p.curves), cell(s.get("acc_mm"), 2),
+             cell(s.get("comp_mm"), 2), cell(_chamfer(p.curve_scores), 2)]
     cells += [cell(s.get(f"fscore_{mm}mm"), 1) for mm in _thresholds_mm()]
     cells.append(cell((p.point_scores or {}).get("fscore_10mm"), 1))
     return "| " + " | ".join(cells) + " |"
 
 
 def markdown(results: list[BudgetResult], scene_name: str) -> str:
-    """Two Markdown tables for docs/BENCHMARKS.md: each budget at its end, then every point."""
-    columns = ["budget", "resolution", "epoch", "train (s)", "primitives", "curves", "Acc (mm)", "Comp (mm)",
-               "Chamfer (mm)", *(f"F{mm}" for mm in _thresholds_mm()), "points F10"]
+    """Two Markdown tables for docs/BENCHMARKS.md: each run (budget and seed) at its end, then
+    every point."""
+    columns = ["budget", "seed", "resolution", "epoch", "train (s)", "primitives", "curves", "Acc (mm)",
+               "Comp (mm)", "Chamfer (mm)", *(f"F{mm}" for mm in _thresholds_mm()), "points F10"]
     head = ["| " + " | ".join(columns) + " |", "|" + "---|" * len(columns)]
     final = [_markdown_row(r, r.points[-1]) for r in results if r.points]
     every = [_markdown_row(r, p) for r in results for p in r.points]
-    return "\n".join([f"**Speed against error on {scene_name}: each budget at its end**", "", *head, *final,
+    return "\n".join([f"**Speed against error on {scene_name}: each run at its end**", "", *head, *final,
                       "", "**Along training**", "", *head, *every, ""])
 
 
 def plot_png(results: list[BudgetResult], scene_name: str) -> bytes:
-    """Two panels, F10 and Chamfer against training seconds, one line per budget; PNG bytes."""
+    """Two panels, F10 and Chamfer against training seconds, one line per run (per budget when
+    every budget has one seed); PNG bytes."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
     from matplotlib.ticker import LogLocator, ScalarFormatter
@@ -285,16 +333,18 @@ def plot_png(results: list[BudgetResult], scene_name: str) -> bytes:
     FigureCanvasAgg(figure)
     f_axis, chamfer_axis = figure.subplots(1, 2)
     seconds_seen = []
+    several_seeds = len({result.seed for result in results}) > 1
     for result in results:
+        name = f"{result.budget} seed {result.seed}" if several_seeds else result.budget
         seconds = [p.seconds for p in result.points]
         seconds_seen += seconds
         f10 = [(p.curve_scores or {}).get("fscore_10mm", math.nan) for p in result.points]
         chamfer = [math.nan if p.curve_scores is None else _chamfer(p.curve_scores)
                    for p in result.points]
-        f_axis.plot(seconds, f10, marker="o", label=result.budget)
-        chamfer_axis.plot(seconds, chamfer, marker="o", label=result.budget)
+        f_axis.plot(seconds, f10, marker="o", label=name)
+        chamfer_axis.plot(seconds, chamfer, marker="o", label=name)
     # Budgets differ by tens of times in cost: a log axis keeps the fast ones readable.
-    log_scale = max(seconds_seen) >= 10 * min(seconds_seen)
+    log_scale = bool(seconds_seen) and max(seconds_seen) >= 10 * min(seconds_seen)
     for axis, label in ((f_axis, "F-score at 10 mm (%)"), (chamfer_axis, "Chamfer, (Acc + Comp) / 2 (mm)")):
         axis.set_xlabel("training time (s)")
         axis.set_ylabel(label)
@@ -317,7 +367,7 @@ def plot_png(results: list[BudgetResult], scene_name: str) -> bytes:
 def write_summary(out: Path, scene_name: str, results: list[BudgetResult]) -> list[Path]:
     """Write OUT/speed_error.csv, .md and .png atomically; returns their paths."""
     csv_path, md_path, png_path = (out / name for name in SUMMARY)
-    atomic_write_bytes(csv_path, csv_text(results).encode())
+    atomic_write_bytes(csv_path, csv_text(csv_rows(results)).encode())
     atomic_write_bytes(md_path, markdown(results, scene_name).encode())
     atomic_write_bytes(png_path, plot_png(results, scene_name))
     return [csv_path, md_path, png_path]
