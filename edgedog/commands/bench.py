@@ -38,6 +38,29 @@ def _integer(low: int, high: int):
     return integer
 
 
+def _seeds(text: str) -> tuple[int, ...]:
+    """An argparse type: comma-separated seeds in [0, MAX_SEED], each once."""
+    try:
+        seeds = tuple(dict.fromkeys(int(item) for item in text.split(",") if item.strip()))
+    except ValueError:
+        seeds = ()
+    if not seeds or any(not 0 <= seed <= MAX_SEED for seed in seeds):
+        raise argparse.ArgumentTypeError(f"must be comma-separated integers in [0, {MAX_SEED}], got {text!r}")
+    return seeds
+
+
+def _add_batch_options(parser: argparse.ArgumentParser) -> None:
+    """The options of a bench run as a batch: seeds, where its runs execute, --quiet."""
+    parser.add_argument("--seeds", type=_seeds, default=(0,), metavar="N,...",
+                        help="training seeds: each row or budget trains once per seed (default 0)")
+    parser.add_argument("--address", default=None, metavar="auto|HOST:PORT|ray://HOST:PORT",
+                        help="a Ray cluster to run on, as for edgedog batch; default: Ray started on this "
+                             "machine when it is installed, else one run after another in this process")
+    parser.add_argument("--cpus-per-run", type=_integer(1, 1024), default=1, metavar="N",
+                        help="CPUs (and torch/OpenMP threads) of each run (default 1)")
+    parser.add_argument("--quiet", action="store_true", help="no line per finished run")
+
+
 def add_parser(subparsers) -> None:
     parser = subparsers.add_parser("bench", help="run a benchmark and print its JSON")
     kinds = parser.add_subparsers(dest="benchmark", required=True, metavar="BENCHMARK")
@@ -65,9 +88,11 @@ def add_parser(subparsers) -> None:
     ablation = kinds.add_parser(
         "ablation", help="EdgeDoG's components, weighting functions (the paper's Tables 3 and 4) and "
                          "corrections of the maps' bias",
-        description="Train one run per row (baseline to full model; each weighting w(Up)), extract "
-                    "and score its curves, and write OUT/ablation.json and OUT/ablation.md. Finished "
-                    "runs in OUT are reused, unfinished ones resumed.")
+        description="Train one run per row and seed (baseline to full model; each weighting w(Up)), "
+                    "extract and score its curves, and write OUT/ablation.json and OUT/ablation.md "
+                    "(per row: mean and sample standard deviation over the seeds) beside the batch's "
+                    "tables (OUT/batch.*). The runs go through the batch path (see edgedog batch); "
+                    "finished runs in OUT are reused, unfinished ones resumed.")
     ablation.add_argument("scene", type=Path, help="scene folder with ground truth")
     ablation.add_argument("--out", type=Path, required=True, help="folder for the runs and the tables")
     ablation.add_argument("--preset", choices=PRESETS, default=DEFAULT_PRESET)
@@ -81,7 +106,7 @@ def add_parser(subparsers) -> None:
                           help="only these rows of the tables: " + "; ".join(
                               f"{table} " + ", ".join(row.key for row in select_rows((table,)))
                               for table in TABLES))
-    ablation.add_argument("--quiet", action="store_true", help="no progress bars")
+    _add_batch_options(ablation)
     ablation.set_defaults(run=run_ablation)
     layers = kinds.add_parser(
         "layers", help="multi-granularity layers against a single run on the finest maps (Fig. 7)",
@@ -103,7 +128,30 @@ def add_parser(subparsers) -> None:
     layers.add_argument("--no-figure", action="store_true", help="skip the figure (needs EGL)")
     layers.add_argument("--quiet", action="store_true", help="no progress bars")
     layers.set_defaults(run=run_layers)
+    _add_steps(kinds)
     _add_speed_error(kinds)
+
+
+def _add_steps(kinds) -> None:
+    from edgedog.train.config import DEFAULT_PRESET
+
+    steps = kinds.add_parser(
+        "steps", help="where a training step's time goes: time per step of each stage of the trainer",
+        description="Train one run in OUT/run (a new folder) as edgedog train does, recording evenly "
+                    "spaced windows of steps with torch.profiler; write OUT/steps.json and OUT/steps.md: "
+                    "each stage's milliseconds per step (rasterize, pixel uncertainty, loss, backward, "
+                    "Adam, ...), the rest of the step, and the operators with the most time of their own. "
+                    "The profiler slows the recorded steps a little; the run's own time per step is "
+                    "printed beside them.")
+    steps.add_argument("scene", type=Path, help="scene folder")
+    steps.add_argument("--out", type=Path, required=True, help="a new folder for the run and the tables")
+    steps.add_argument("--preset", choices=PRESETS, default=DEFAULT_PRESET)
+    steps.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                       help="override a training setting (repeatable)")
+    steps.add_argument("--windows", type=int, default=10, help="recorded windows, spread over the run")
+    steps.add_argument("--window-steps", type=int, default=20, help="steps recorded per window")
+    steps.add_argument("--quiet", action="store_true", help="no progress bar")
+    steps.set_defaults(run=run_steps)
 
 
 def _add_speed_error(kinds) -> None:
@@ -111,11 +159,12 @@ def _add_speed_error(kinds) -> None:
 
     speed = kinds.add_parser(
         "speed-error", help="error of the extracted curves against training time, for a few budgets",
-        description="Train one run per budget in OUT/<budget>/, pausing at evenly spaced epochs to "
-                    "extract and score the curves; write OUT/speed_error.csv, .md and .png. Seconds "
-                    "are training time only. Finished budgets in OUT are reused, unfinished ones "
-                    "resumed. Budgets: " + "; ".join(f"{b.name}: {b.description}" for b in BUDGETS.values())
-                    + ".")
+        description="Train one run per budget and seed in OUT, pausing at evenly spaced epochs to "
+                    "extract and score the curves; write OUT/speed_error.csv, .md and .png beside the "
+                    "batch's tables (OUT/batch.*). Seconds are training time only. The runs go through "
+                    "the batch path (see edgedog batch); finished ones in OUT are reused, unfinished "
+                    "ones resumed. Budgets: "
+                    + "; ".join(f"{b.name}: {b.description}" for b in BUDGETS.values()) + ".")
     speed.add_argument("scene", type=Path, help="scene folder with ground truth")
     speed.add_argument("--out", type=Path, required=True, help="folder for the runs and the summary")
     speed.add_argument("--budgets", default=DEFAULT_BUDGETS,
@@ -125,7 +174,7 @@ def _add_speed_error(kinds) -> None:
                             "downscale or epoch share (repeatable)")
     speed.add_argument("--evals", type=int, default=5,
                        help="evaluation points per run, evenly spaced in epochs, the last at the end")
-    speed.add_argument("--quiet", action="store_true", help="no progress bars")
+    _add_batch_options(speed)
     speed.set_defaults(run=run_speed_error)
 
 
@@ -147,30 +196,60 @@ def run_raster(args: argparse.Namespace) -> None:
     print(summary(result))
 
 
+def _check_no_seed(overrides: list[str]) -> None:
+    """Seeds are --seeds: a --set of the seed would make every seed one run."""
+    from edgedog.train.config import setting_name
+
+    for assignment in overrides:
+        key = assignment.partition("=")[0].strip()
+        try:
+            named = setting_name(key)
+        except ConfigError:
+            continue  # an unknown setting: applying the overrides names it
+        if named == "run.seed":
+            raise ConfigError(f"--set {assignment!r}: give seeds with --seeds")
+
+
+def _executor_and_progress(args: argparse.Namespace):
+    """The executor the options ask for and the progress callback (None with --quiet)."""
+    from edgedog.batch.executors import choose_executor
+    from edgedog.commands.batch import print_progress
+
+    _check_no_seed(args.overrides)
+    return choose_executor(args.address, args.cpus_per_run), None if args.quiet else print_progress
+
+
 def run_ablation(args: argparse.Namespace) -> None:
+    """A row whose runs failed (e.g. a correction with no calibration record) says why in the
+    tables; the others stand."""
     from edgedog.bench.ablation import markdown, run_ablation
-    from edgedog.train.config import preset, with_overrides
 
     tables = tuple(t.strip() for t in args.tables.split(",") if t.strip())
     if not tables or any(t not in TABLES for t in tables):
         raise ConfigError(f"--tables must list some of {', '.join(TABLES)}, got {args.tables!r}")
-    base = with_overrides(preset(args.preset), args.overrides)
     keys = None if args.rows is None else tuple(k.strip() for k in args.rows.split(",") if k.strip())
-    results = run_ablation(args.scene, args.out, args.preset, base, tables, progress=not args.quiet,
-                           keys=keys)
-    print(markdown(results))
-    print(f"wrote {args.out / 'ablation.json'} and {args.out / 'ablation.md'}")
+    rows = select_rows(tables, keys)
+    executor, report = _executor_and_progress(args)
+    result = run_ablation(args.scene, args.out, args.preset, args.overrides, rows, args.seeds, executor,
+                          report)
+    print(markdown(result.rows))
+    print("wrote " + ", ".join(str(path) for path in result.batch.files))
 
 
 def run_speed_error(args: argparse.Namespace) -> None:
-    from edgedog.bench.speed_error import SUMMARY, markdown, parse_budgets, run_speed_error
+    from edgedog.bench.speed_error import markdown, parse_budgets, run_speed_error
+    from edgedog.errors import InputError
 
     budgets = parse_budgets(args.budgets)
-    results = run_speed_error(args.scene, args.out, budgets, args.overrides, args.evals,
-                              progress=not args.quiet)
-    print(markdown(results, args.scene.resolve().name))
-    print("wrote " + ", ".join(str(args.out / name) for name in SUMMARY))
-    print("runs in " + ", ".join(str(args.out / b.name) for b in budgets))
+    executor, report = _executor_and_progress(args)
+    result = run_speed_error(args.scene, args.out, budgets, args.overrides, executor, args.evals, args.seeds,
+                             report)
+    print(markdown(result.results, args.scene.resolve().name))
+    print("wrote " + ", ".join(str(path) for path in result.batch.files))
+    failed = result.batch.failed
+    if failed:
+        raise InputError(args.out, f"{len(failed)} of {len(result.batch.outcomes)} runs failed (see "
+                                   f"batch.md); {failed[0].spec.name}: {failed[0].error}")
 
 
 def run_layers(args: argparse.Namespace) -> None:
@@ -186,6 +265,18 @@ def run_layers(args: argparse.Namespace) -> None:
     print(markdown(results))
     print(f"wrote {args.out / 'layers.json'}, {args.out / 'layers.md'}"
           + ("" if args.no_figure else f" and {args.out / 'layers.png'}"))
+
+
+def run_steps(args: argparse.Namespace) -> None:
+    from edgedog.bench.steps import markdown, run_steps_bench
+    from edgedog.files import read_json
+    from edgedog.train.config import preset, with_overrides
+
+    config = with_overrides(preset(args.preset), args.overrides)
+    run_steps_bench(args.scene, args.out, args.preset, config, args.windows, args.window_steps,
+                    progress=not args.quiet)
+    print(markdown(read_json(args.out / "steps.json")))
+    print(f"wrote {args.out / 'steps.json'} and {args.out / 'steps.md'}")
 
 
 def run_edges(args: argparse.Namespace) -> None:

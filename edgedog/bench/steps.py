@@ -1,0 +1,152 @@
+"""`edgedog bench steps`: where a training step's time goes.
+
+A whole run is trained as `edgedog train` trains it; torch.profiler records evenly spaced windows
+of steps through it (the model's size changes over a run, so one window would not be typical).
+Each step's stages are labelled in `Trainer.step` (`record_function`): the table gives each
+stage's time per step (inclusive of the operators it calls) and the rest of the step (Python and
+autograd glue between the stages), then the operators with the most time of their own, our
+rasterizer's kernels among them. The profiler itself slows the recorded steps a little; the run's
+own training time (log.json) is reported beside them.
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections import defaultdict
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import torch
+from torch.profiler import ProfilerActivity, profile, schedule
+
+from edgedog.bench.tables import cell
+from edgedog.errors import ConfigError
+from edgedog.files import atomic_write_bytes, atomic_write_json
+from edgedog.train.config import TrainConfig
+
+STAGES = ("rasterize", "pixel uncertainty", "loss", "backward", "density statistics", "adam",
+          "orientation losses", "density control", "checkpoint", "snapshot")
+"""The labels of `Trainer.step`, in the order a step runs them."""
+STEP_PREFIX = "ProfilerStep"
+"""torch.profiler's label of each recorded step ("ProfilerStep*" in its averages)."""
+TOP_OPERATORS = 15
+MAX_WINDOWS = 100
+MAX_WINDOW_STEPS = 1000
+
+
+@dataclass
+class StepProfile:
+    """What the recorded steps spent, in seconds summed over them.
+
+    steps: steps recorded; step_seconds: their wall time; stages: label -> inclusive time;
+    operators: operator -> its own time (self CPU); train_seconds, total_steps: the whole run's
+    training time (profiled steps included) and step count.
+    """
+
+    steps: int = 0
+    step_seconds: float = 0.0
+    stages: dict[str, float] = field(default_factory=lambda: defaultdict(float))
+    operators: dict[str, float] = field(default_factory=lambda: defaultdict(float))
+    train_seconds: float = 0.0
+    total_steps: int = 0
+
+    def add_window(self, events) -> None:
+        """Add one recorded window (`prof.key_averages()`)."""
+        for event in events:
+            seconds = event.cpu_time_total / 1e6
+            if event.key.startswith(STEP_PREFIX):
+                self.steps += event.count
+                self.step_seconds += seconds
+            elif event.key in STAGES:
+                self.stages[event.key] += seconds
+            else:
+                self.operators[event.key] += event.self_cpu_time_total / 1e6
+
+    def rows(self) -> list[dict]:
+        """Per stage (and the rest of the step): ms per recorded step and share of the step."""
+        per_step = 1000 / max(self.steps, 1)
+        rest = self.step_seconds - sum(self.stages.values())
+        named = [(stage, self.stages.get(stage, 0.0)) for stage in STAGES] + [("rest of the step", rest)]
+        return [{"stage": stage, "ms_per_step": seconds * per_step,
+                 "share": seconds / self.step_seconds if self.step_seconds else None}
+                for stage, seconds in named]
+
+    def top_operators(self, count: int = TOP_OPERATORS) -> list[dict]:
+        per_step = 1000 / max(self.steps, 1)
+        ranked = sorted(self.operators.items(), key=lambda item: -item[1])[:count]
+        return [{"operator": name, "ms_per_step": seconds * per_step} for name, seconds in ranked]
+
+    def to_dict(self) -> dict:
+        return {"recorded_steps": self.steps, "recorded_seconds": self.step_seconds,
+                "train_seconds": self.train_seconds, "total_steps": self.total_steps,
+                "stages": self.rows(), "operators": self.top_operators()}
+
+
+def window_schedule(total_steps: int, windows: int, window_steps: int):
+    """A profiler schedule of `windows` windows of `window_steps` recorded steps (each after one
+    warm-up step), spread evenly over `total_steps`."""
+    if not 1 <= windows <= MAX_WINDOWS or not 1 <= window_steps <= MAX_WINDOW_STEPS:
+        raise ConfigError(f"bench steps: --windows must be in [1, {MAX_WINDOWS}] and --window-steps in "
+                          f"[1, {MAX_WINDOW_STEPS}], got {windows} and {window_steps}")
+    cycle = total_steps // windows
+    if cycle < window_steps + 1:
+        raise ConfigError(f"bench steps: {windows} windows of {window_steps} steps (each after a warm-up "
+                          f"step) do not fit in the run's {total_steps} steps")
+    return schedule(wait=cycle - window_steps - 1, warmup=1, active=window_steps, repeat=windows)
+
+
+def profile_training(trainer, windows: int, window_steps: int) -> StepProfile:
+    """Train `trainer` to its end, recording `windows` windows of `window_steps` steps; writes
+    the run's outputs as `Trainer.run` does."""
+    total = trainer.config.schedule.epochs * len(trainer.cameras) - trainer.step_index
+    result = StepProfile(total_steps=total)
+    with warnings.catch_warnings(), profile(
+            activities=[ProfilerActivity.CPU], schedule=window_schedule(total, windows, window_steps),
+            on_trace_ready=lambda prof: result.add_window(prof.key_averages())) as prof:
+        # Each window is read when it ends, so that the profiler may forget it, as it warns it does.
+        warnings.filterwarnings("ignore", message="Profiler clears events")
+        while not trainer.done:
+            trainer.step()
+            prof.step()
+    trainer.write_outputs()
+    result.train_seconds = trainer.seconds
+    return result
+
+
+def run_steps_bench(scene_path: Path, out: Path, preset_name: str, config: TrainConfig, windows: int,
+                    window_steps: int, progress: bool = True) -> StepProfile:
+    """Train `config` on the scene into OUT/run (a new folder) with the profiler's windows, and
+    write OUT/steps.json and OUT/steps.md."""
+    from edgedog.train.lifecycle import START, load_run_scene, plan_run
+    from edgedog.train.run_folder import RunLock, write_run
+    from edgedog.train.trainer import Trainer
+
+    plan = plan_run(out / "run", scene_path, preset_name, config, START).check()
+    scene = load_run_scene(scene_path, config)
+    with RunLock.acquire(out), RunLock.acquire(plan.run.path):
+        write_run(plan.run)
+        trainer = Trainer(scene, config, plan.run.path, progress=progress)
+        result = profile_training(trainer, windows, window_steps)
+        camera = scene.camera(0)
+        summary = {"scene": str(scene.root), "preset": preset_name, "views": len(scene),
+                   "size": [camera.width, camera.height], "threads": torch.get_num_threads(),
+                   "final_primitives": len(trainer.model), **result.to_dict()}
+        atomic_write_json(out / "steps.json", summary)
+        atomic_write_bytes(out / "steps.md", markdown(summary).encode())
+    return result
+
+
+def markdown(summary: dict) -> str:
+    """The stage table and the operator table of a `run_steps_bench` summary."""
+    steps, total, seconds = summary["recorded_steps"], summary["total_steps"], summary["train_seconds"]
+    recorded_ms = summary["recorded_seconds"] * 1000 / max(steps, 1)
+    lines = [f"{steps} of {total} steps recorded ({recorded_ms:.1f} ms per recorded step; the run: "
+             f"{seconds:.1f} s training, {seconds * 1000 / max(total, 1):.1f} ms per step, "
+             f"{summary['threads']} threads).",
+             "", "| stage | ms per step | share |", "|---|---|---|"]
+    for row in summary["stages"]:
+        share = None if row["share"] is None else 100 * row["share"]
+        lines.append(f"| {row['stage']} | {cell(row['ms_per_step'], 2)} | {cell(share, 1)} % |")
+    lines += ["", "| operator (own time) | ms per step |", "|---|---|"]
+    lines += [f"| `{row['operator']}` | {cell(row['ms_per_step'], 2)} |" for row in summary["operators"]]
+    return "\n".join(lines) + "\n"
