@@ -170,7 +170,10 @@ def test_ctrl_c_stops_cleanly_and_the_run_resumes(tiny_scenes, tmp_path):
     argv = [sys.executable, "-m", "edgedog", "train", str(tiny_scenes[0]), "--out", str(run), "--preset",
             "preview", "--set", "epochs=40", "--set", "checkpoint_every=1", "--set", "init_count=300",
             "--quiet"]
-    process = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    # As in a terminal: a test runner started in the background (e.g. `cmd &` in a script) passes
+    # SIGINT on ignored, and Python then never turns it into KeyboardInterrupt.
+    process = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                               preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     deadline = time.monotonic() + 120
     while not (run / "checkpoint.pt").is_file() and time.monotonic() < deadline:
         time.sleep(0.1)
