@@ -1,14 +1,5 @@
-"""A benchmark suite: its YAML file, checked, and the runs it expands to.
-
-    scenes: [../shared/data/abc_nef/00004926, scenes/*]   # folders or globs, relative to the file
-    presets: [fast]                                      # default [full]
-    grid:                                                # every combination (optional)
-      weighting: [exp_neg, exp]
-    rows:                                                # named override lists (optional)
-      full: []
-      no-fisher: [primitive_uncertainty=false]
-    seeds: [0, 1, 2]                                     # default [0]
-    set: [detector=canny]                                # applied to every run (optional)
+"""A benchmark suite: its YAML file, checked, and the runs it expands to (`EXAMPLE` shows the
+format).
 
 The runs are every scene x preset x grid combination x row x seed, in that nesting order (the
 file's order within each), so the same file always gives the same list. Each run's overrides are
@@ -29,6 +20,19 @@ from pathlib import Path
 from edgedog.errors import ConfigError, InputError
 from edgedog.settings import setting_paths, value_at
 from edgedog.train.config import DEFAULT_PRESET, MAX_SEED, PRESETS, TrainConfig, preset, with_overrides
+
+EXAMPLE = """\
+scenes: [../data/abc_nef/00004926, scenes/*]   # folders or globs, relative to this file
+presets: [fast]                                # default [full]
+grid:                                          # every combination (optional)
+  weighting: [exp_neg, exp]
+rows:                                          # named override lists (optional)
+  full: []
+  no-fisher: [primitive_uncertainty=false]
+seeds: [0, 1, 2]                               # default [0]
+set: [detector=canny]                          # applied to every run (optional)
+"""
+"""A suite file: what `edgedog batch --help` shows."""
 
 MAX_RUNS = 10_000
 """Runs one suite may expand to: a grid of a few settings with several values each multiplies fast."""

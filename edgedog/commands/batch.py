@@ -3,23 +3,14 @@
 from __future__ import annotations
 
 import argparse
+import textwrap
 import time
 from pathlib import Path
 
+from edgedog.batch.suite import EXAMPLE
 from edgedog.errors import InputError
 
-EPILOG = """\
-suite file (YAML; scene paths relative to it):
-  scenes: [../data/abc_nef/00004926, scenes/*]   # folders or globs
-  presets: [fast]                                # default [full]
-  grid:                                          # every combination (optional)
-    weighting: [exp_neg, exp]
-  rows:                                          # named override lists (optional)
-    full: []
-    no-fisher: [primitive_uncertainty=false]
-  seeds: [0, 1, 2]                               # default [0]
-  set: [detector=canny]                          # applied to every run (optional)
-
+EPILOG = "suite file (YAML):\n" + textwrap.indent(EXAMPLE, "  ") + """
 Each run trains, extracts and scores into DIR/<scene>_<preset>[_<row>]_<digest>_seed<N>/.
 Rerunning the command skips finished runs and resumes killed ones from their checkpoints.
 DIR gets batch.json, batch.csv (per configuration: mean and sample standard deviation over
