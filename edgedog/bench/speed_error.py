@@ -71,6 +71,7 @@ BUDGETS = {b.name: b for b in (
     Budget("preview-50", "preview", "preset preview with half its epochs", epoch_share=0.5),
     Budget("preview", "preview", "preset preview (100 epochs at 1/2 resolution)"),
     Budget("preview-d1", "preview", "preset preview at full resolution", downscale=1),
+    Budget("quick", "quick", "preset quick (100 epochs, the first 70 at 1/2 resolution)"),
     Budget("fast", "fast", "preset fast (200 epochs at full resolution)"),
     Budget("full", "full", "preset full (400 epochs at full resolution)"),
 )}

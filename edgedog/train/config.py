@@ -157,6 +157,11 @@ class ScheduleSettings(Settings):
 
     epochs: Annotated[int, Range(1, MAX_EPOCHS)] = 400
     """Length of the run (EdgeGaussians: 400); `with_epochs` scales every setting in epochs with it."""
+    coarse_downscale: Annotated[int, Range(1, MAX_DOWNSCALE)] = 1
+    """Coarse-to-fine: before `fine_from_epoch`, steps render at 1/coarse_downscale of the maps'
+    resolution against the maps area-averaged (edgedog.train.resolution); 1: never coarse."""
+    fine_from_epoch: Epoch = 0
+    """Coarse-to-fine: the epoch from which every step renders the maps' own resolution."""
     lr_means: Rate = 2e-3
     """Adam's learning rate of the centres (scene units per step)."""
     lr_means_decay_epochs: tuple[Epoch, ...] = (10, 20, 30, 40, 50)
@@ -404,6 +409,13 @@ def fast() -> TrainConfig:
     return with_epochs(full(), 200)
 
 
+def quick() -> TrainConfig:
+    """`full` compressed to 100 epochs, coarse to fine: the first 70 at half resolution, the last
+    30 at the maps' own (docs/RESULTS.md, "Time to accuracy")."""
+    return with_values(with_epochs(full(), 100), {"schedule.coarse_downscale": 2,
+                                                  "schedule.fine_from_epoch": 70})
+
+
 def preview() -> TrainConfig:
     """`full` compressed to 100 epochs at half resolution: a quick look for the demo and the
     studio."""
@@ -430,6 +442,7 @@ def paper() -> TrainConfig:
 PRESETS = {
     "full": Preset("our defaults, EdgeGaussians' 400 epochs at full resolution", full),
     "fast": Preset("full compressed to 200 epochs, at full resolution", fast),
+    "quick": Preset("full compressed to 100 epochs, the first 70 at half resolution", quick),
     "preview": Preset("full compressed to 100 epochs at half resolution", preview),
     "paper": Preset("the EdgeDoG paper's exact settings (w = exp(Up), 2500 uniform points, none of "
                     "our additions), 400 epochs", paper),

@@ -136,9 +136,10 @@ class LearnedShift:
         self.shift = torch.zeros(2, requires_grad=True)
         self.adam = torch.optim.Adam([self.shift], lr=config.maps.lr_shift)
 
-    def target(self, target: torch.Tensor, epoch: int) -> torch.Tensor:
-        """(H, W) target as fitted at `epoch`: shifted (differentiably) once the shift is on."""
-        return warp_target(target, self.shift) if epoch >= self.from_epoch else target
+    def target(self, target: torch.Tensor, epoch: int, factor: int = 1) -> torch.Tensor:
+        """(H, W) target as fitted at `epoch`: shifted (differentiably) once the shift is on;
+        `factor`: the target's downscale from the maps (the shift is in the maps' px)."""
+        return warp_target(target, self.shift / factor) if epoch >= self.from_epoch else target
 
     def step(self) -> None:
         if self.shift.grad is not None and torch.isfinite(self.shift.grad).all():

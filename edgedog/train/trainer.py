@@ -34,6 +34,7 @@ from edgedog.train.config import TrainConfig, for_detector, from_dict, to_dict
 from edgedog.train.layers import LowerLayers, keep_on_residual, lower_layer_config, residual_maps
 from edgedog.train.model import EdgeModel
 from edgedog.train.optim import Optimizers
+from edgedog.train.resolution import ViewSet, coarser
 from edgedog.train.strategy import DensityStrategy, EdgeViews, StrategyState
 from edgedog.train.targets import (
     LearnedShift,
@@ -159,6 +160,9 @@ class Trainer:
             self.silhouette["views_without_mask"] = unreadable
         self.targets = [torch.from_numpy(m) for m in maps]
         self.views = EdgeViews(self.cameras, scene.cameras, [torch.from_numpy(m) for m in masks])
+        fine = ViewSet(1, self.cameras, self.targets, self.views.edge_masks)
+        self.coarse = coarser(fine, scene.cameras, config.schedule.coarse_downscale)
+        self.fine = fine
         self.learned_shift = LearnedShift(config) if config.maps.correction == "learned" else None
         self.strategy = DensityStrategy(config, self.raster)
         self.controls = Controls(config.strategy.keep_ratio, config.loss.weighting)
@@ -234,10 +238,11 @@ class Trainer:
                 self.lower_optimizers.set_epoch(epoch)
             self._epoch_losses = []
         view = int(self._order[position])
+        views = self.views_at(epoch)
         # The stages' names label the step for `edgedog bench steps` (torch.profiler); outside a
         # profiler they cost a few microseconds.
         with record_function("rasterize"):
-            out = rasterize(self.lower.stacked_with(self.model), self.cameras[view], self.raster)
+            out = rasterize(self.lower.stacked_with(self.model), views.cameras[view], self.raster)
         with record_function("pixel uncertainty"):
             weight = None
             if c.pixel_uncertainty:
@@ -245,12 +250,12 @@ class Trainer:
         with record_function("loss"):
             sample = None
             if epoch >= c.sampled_from_epoch and self.step_index % c.sampled_every == 0:
-                sample = losses.edge_and_background_sample(self.views.edge_masks[view], self.generator)
-            render, target = out.image[..., 0], self.targets[view]
+                sample = losses.edge_and_background_sample(views.edge_masks[view], self.generator)
+            render, target = out.image[..., 0], views.targets[view]
             if self.config.maps.edge_profile == "profile":
-                render = blur_to_profile(render, self.config.maps.profile_sigma)
+                render = blur_to_profile(render, self.config.maps.profile_sigma / views.factor)
             if self.learned_shift is not None:
-                target = self.learned_shift.target(target, epoch)
+                target = self.learned_shift.target(target, epoch, views.factor)
             loss = losses.projection_loss(render, target, weight, sample)
         with record_function("backward"):
             loss.backward()
@@ -274,6 +279,10 @@ class Trainer:
             with record_function("snapshot"):
                 self.latest_snapshot = self.snapshot(self._epoch_losses[-1])
         return self._epoch_losses[-1]
+
+    def views_at(self, epoch: int) -> ViewSet:
+        """The views a step of `epoch` renders: coarse before `schedule.fine_from_epoch`."""
+        return self.coarse if epoch < self.config.schedule.fine_from_epoch else self.fine
 
     def _orientation_losses(self, epoch: int) -> None:
         """EdgeGaussians' direction and scale-ratio terms, each weighted to `factor` times the

@@ -1,0 +1,68 @@
+"""The training views at one resolution, and their coarser copy for a coarse-to-fine schedule.
+
+Early epochs only have to bring the primitives near their edges; at 1/2 resolution a step costs
+about a quarter of the pixels. `schedule.coarse_downscale` and `schedule.fine_from_epoch` say how
+coarse and until when; from `fine_from_epoch` on every step renders the maps' own resolution.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+from edgedog.renderer.primitives import RasterCamera
+from edgedog.scenes.camera import Camera
+from edgedog.scenes.images import resize_to
+
+
+@dataclass(frozen=True)
+class ViewSet:
+    """What a step renders and compares, per view, at one resolution.
+
+    Attributes:
+        factor: the resolution's downscale from the training maps (1: the maps' own).
+        cameras: the rasterizer's cameras at this resolution.
+        targets: (H, W) float32 maps to fit.
+        edge_masks: (H, W) bool edge pixels (the sampled loss's edges).
+    """
+
+    factor: int
+    cameras: list[RasterCamera]
+    targets: list[torch.Tensor]
+    edge_masks: list[torch.Tensor]
+
+
+def coarse_size(width: int, height: int, factor: int) -> tuple[int, int]:
+    """(width, height) of a `width` x `height` view at 1/factor (at least 1 px each way)."""
+    return max(1, width // factor), max(1, height // factor)
+
+
+def any_in_block(mask: np.ndarray, width: int, height: int) -> np.ndarray:
+    """(height, width) bool: a coarse pixel is an edge where any fine pixel of its block is (an
+    area average would dim a 1 px line below the edge threshold). The fine (H, W) mask is cropped
+    to a multiple of the coarse size."""
+    fy, fx = mask.shape[0] // height, mask.shape[1] // width
+    blocks = mask[:height * fy, :width * fx].reshape(height, fy, width, fx)
+    return blocks.any(axis=(1, 3))
+
+
+def coarser(fine: ViewSet, pinholes: list[Camera], factor: int) -> ViewSet:
+    """`fine` at 1/factor of its resolution: targets area-averaged (as `maps.downscale` loads
+    maps), masks by `any_in_block`, cameras scaled about the image corner.
+
+    Args:
+        fine: the views at the training maps' resolution (factor 1).
+        pinholes: the same views' cameras as `edgedog.scenes.Camera`, at that resolution.
+        factor: the downscale, >= 1 (1 returns `fine`).
+    """
+    if factor == 1:
+        return fine
+    cameras, targets, masks = [], [], []
+    for camera, pinhole, target, mask in zip(fine.cameras, pinholes, fine.targets, fine.edge_masks):
+        width, height = coarse_size(pinhole.width, pinhole.height, factor)
+        cameras.append(RasterCamera.from_camera(pinhole.scaled(width, height), near=camera.near))
+        targets.append(torch.from_numpy(np.ascontiguousarray(resize_to(target.numpy(), width, height))))
+        masks.append(torch.from_numpy(any_in_block(mask.numpy(), width, height)))
+    return ViewSet(factor, cameras, targets, masks)
