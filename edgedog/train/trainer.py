@@ -160,9 +160,8 @@ class Trainer:
             self.silhouette["views_without_mask"] = unreadable
         self.targets = [torch.from_numpy(m) for m in maps]
         self.views = EdgeViews(self.cameras, scene.cameras, [torch.from_numpy(m) for m in masks])
-        fine = ViewSet(1, self.cameras, self.targets, self.views.edge_masks)
-        self.coarse = coarser(fine, scene.cameras, config.schedule.coarse_downscale)
-        self.fine = fine
+        self.fine = ViewSet(1, self.cameras, self.targets, self.views.edge_masks)
+        self.coarse = coarser(self.fine, scene.cameras, config.schedule.coarse_downscale)
         self.learned_shift = LearnedShift(config) if config.maps.correction == "learned" else None
         self.strategy = DensityStrategy(config, self.raster)
         self.controls = Controls(config.strategy.keep_ratio, config.loss.weighting)
