@@ -125,7 +125,7 @@ def test_scenes_of_one_name_in_two_parents_are_refused(tmp_path):
     ("scenes: []\n", "'scenes' must be a non-empty list"),
     ("scenes: [nowhere]\n", "scenes: 'nowhere' is not a folder"),
     ("scenes: ['nowhere/*']\n", "scenes: 'nowhere/*' matches no folder"),
-    ("scenes: [scenes/*]\npresets: [quick]\n", "presets: unknown preset 'quick'"),
+    ("scenes: [scenes/*]\npresets: [fastest]\n", "presets: unknown preset 'fastest'"),
     ("scenes: [scenes/*]\ngrid: [epochs]\n", "'grid' must map settings"),
     ("scenes: [scenes/*]\ngrid:\n  epochs: 3\n", "grid.epochs: expected a non-empty list"),
     ("scenes: [scenes/*]\ngrid:\n  epochz: [3]\n", "grid.epochz: --set 'epochz=3': unknown setting"),
