@@ -27,9 +27,10 @@ def test_the_coarse_views_project_and_average_like_the_fine_ones(builtin_scene_d
     scene = load_scene(builtin_scene_dir, downscale=4)  # 100 px
     pinholes = scene.cameras[:3]
     maps = [torch.from_numpy(scene.load_edge_map(i, "exact")) for i in range(3)]
-    fine = ViewSet(1, [RasterCamera.from_camera(c) for c in pinholes], maps, [m >= 0.5 for m in maps])
-    coarse = coarser(fine, pinholes, 2)
-    assert coarse.factor == 2 and coarser(fine, pinholes, 1) is fine
+    cameras = [RasterCamera.from_camera(c) for c in pinholes]
+    fine = ViewSet(1, pinholes, cameras, maps, [m >= 0.5 for m in maps])
+    coarse = coarser(fine, 2)
+    assert coarse.factor == 2 and coarser(fine, 1) is fine
     for pinhole, camera, target, fine_target in zip(pinholes, coarse.cameras, coarse.targets, maps):
         assert (camera.width, camera.height) == (50, 50) and target.shape == (50, 50)
         # The area average keeps the maps' mean; a world point lands on the matching coarse pixel.
@@ -53,11 +54,11 @@ def test_a_coarse_to_fine_run_renders_coarse_then_ends_at_full_resolution(builti
     per_epoch = len(box)
     assert sizes[:2 * per_epoch] == [(50, 50)] * (2 * per_epoch)
     assert sizes[2 * per_epoch:] == [(100, 100)] * (2 * per_epoch)
-    assert trainer.views_at(config.schedule.epochs - 1) is trainer.fine
+    assert trainer.views_at(config.schedule.epochs - 1) is trainer.views
     assert all(torch.isfinite(t).all() for t in trainer.model.tensors().values())
 
 
 def test_without_a_coarse_downscale_every_step_is_at_full_resolution(builtin_scene_dir, tmp_path):
     box = every_fifth_view(builtin_scene_dir)
     trainer = Trainer(box, tiny_config(fine_from_epoch=2), tmp_path, progress=False)
-    assert trainer.views_at(0) is trainer.fine and trainer.coarse is trainer.fine
+    assert trainer.views_at(0) is trainer.views and trainer.coarse is trainer.views

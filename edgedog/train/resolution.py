@@ -1,4 +1,5 @@
-"""The training views at one resolution, and their coarser copy for a coarse-to-fine schedule.
+"""The training views at one resolution (what a step renders and compares, what density control
+projects onto), and their coarser copy for a coarse-to-fine schedule.
 
 Early epochs only have to bring the primitives near their edges; at 1/2 resolution a step costs
 about a quarter of the pixels. `schedule.coarse_downscale` and `schedule.fine_from_epoch` say how
@@ -19,16 +20,18 @@ from edgedog.scenes.images import resize_to
 
 @dataclass(frozen=True)
 class ViewSet:
-    """What a step renders and compares, per view, at one resolution.
+    """The training views at one resolution.
 
     Attributes:
         factor: the resolution's downscale from the training maps (1: the maps' own).
-        cameras: the rasterizer's cameras at this resolution.
+        pinholes: the cameras as `edgedog.scenes.Camera` (for projecting centres).
+        cameras: the same cameras as the rasterizer takes them (renders, Fisher information).
         targets: (H, W) float32 maps to fit.
-        edge_masks: (H, W) bool edge pixels (the sampled loss's edges).
+        edge_masks: (H, W) bool edge pixels (the sampled loss's edges, the projection cull).
     """
 
     factor: int
+    pinholes: list[Camera]
     cameras: list[RasterCamera]
     targets: list[torch.Tensor]
     edge_masks: list[torch.Tensor]
@@ -48,21 +51,21 @@ def any_in_block(mask: np.ndarray, width: int, height: int) -> np.ndarray:
     return blocks.any(axis=(1, 3))
 
 
-def coarser(fine: ViewSet, pinholes: list[Camera], factor: int) -> ViewSet:
+def coarser(fine: ViewSet, factor: int) -> ViewSet:
     """`fine` at 1/factor of its resolution: targets area-averaged (as `maps.downscale` loads
     maps), masks by `any_in_block`, cameras scaled about the image corner.
 
     Args:
         fine: the views at the training maps' resolution (factor 1).
-        pinholes: the same views' cameras as `edgedog.scenes.Camera`, at that resolution.
         factor: the downscale, >= 1 (1 returns `fine`).
     """
     if factor == 1:
         return fine
-    cameras, targets, masks = [], [], []
-    for camera, pinhole, target, mask in zip(fine.cameras, pinholes, fine.targets, fine.edge_masks):
+    pinholes, cameras, targets, masks = [], [], [], []
+    for pinhole, camera, target, mask in zip(fine.pinholes, fine.cameras, fine.targets, fine.edge_masks):
         width, height = coarse_size(pinhole.width, pinhole.height, factor)
-        cameras.append(RasterCamera.from_camera(pinhole.scaled(width, height), near=camera.near))
+        pinholes.append(pinhole.scaled(width, height))
+        cameras.append(RasterCamera.from_camera(pinholes[-1], near=camera.near))
         targets.append(torch.from_numpy(np.ascontiguousarray(resize_to(target.numpy(), width, height))))
         masks.append(torch.from_numpy(any_in_block(mask.numpy(), width, height)))
-    return ViewSet(factor, cameras, targets, masks)
+    return ViewSet(factor, pinholes, cameras, targets, masks)

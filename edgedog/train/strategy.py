@@ -9,12 +9,12 @@ import numpy as np
 import torch
 
 from edgedog.renderer.config import RasterConfig
-from edgedog.renderer.primitives import RasterCamera
 from edgedog.renderer.rasterize import RenderOutput, fisher_information
 from edgedog.scenes.camera import Camera
 from edgedog.train.config import TrainConfig
 from edgedog.train.model import EdgeModel
 from edgedog.train.optim import Optimizers
+from edgedog.train.resolution import ViewSet
 
 
 @dataclass
@@ -31,21 +31,6 @@ class StrategyState:
     absgrad: torch.Tensor
     pruned_positions: np.ndarray = field(default_factory=lambda: np.zeros((0, 3), np.float32))
     fisher: np.ndarray = field(default_factory=lambda: np.zeros(0, np.float32))
-
-
-@dataclass
-class EdgeViews:
-    """The training views as density control needs them.
-
-    Attributes:
-        cameras: the rasterizer's cameras (for Fisher information).
-        pinholes: the same cameras as `edgedog.scenes.Camera` (for projecting centres).
-        edge_masks: (H, W) bool edge pixels of each view.
-    """
-
-    cameras: list[RasterCamera]
-    pinholes: list[Camera]
-    edge_masks: list[torch.Tensor]
 
 
 def edge_hit_share(points: np.ndarray, pinholes: list[Camera],
@@ -83,7 +68,7 @@ class DensityStrategy:
         state.absgrad += out.absgrad.value[skip:].norm(dim=1)
 
     def at_epoch_end(self, epoch: int, model: EdgeModel, optimizers: Optimizers, state: StrategyState,
-                     views: EdgeViews, generator: torch.Generator, keep_ratio: float) -> list[dict]:
+                     views: ViewSet, generator: torch.Generator, keep_ratio: float) -> list[dict]:
         """Apply the events scheduled after `epoch` (0-based); returns a log entry per event."""
         c, events = self.settings, []
         if epoch in c.duplicate_epochs:
@@ -138,10 +123,10 @@ class DensityStrategy:
             model.opacity_logits.clamp_(max=self.settings.opacity_logit_cap)
         return {"event": f"cull_{reason}", "before": before, "after": len(model)}
 
-    def _edge_hit_share(self, model: EdgeModel, views: EdgeViews) -> torch.Tensor:
+    def _edge_hit_share(self, model: EdgeModel, views: ViewSet) -> torch.Tensor:
         return edge_hit_share(model.means.detach().double().numpy(), views.pinholes, views.edge_masks)
 
-    def _fisher_prune(self, model, optimizers, state, views: EdgeViews, keep_ratio: float) -> dict:
+    def _fisher_prune(self, model, optimizers, state, views: ViewSet, keep_ratio: float) -> dict:
         scores = fisher_information(model.primitives(), views.cameras, self.raster)
         before = len(model)
         keep_count = max(1, int(round(keep_ratio * before)))

@@ -35,7 +35,7 @@ from edgedog.train.layers import LowerLayers, keep_on_residual, lower_layer_conf
 from edgedog.train.model import EdgeModel
 from edgedog.train.optim import Optimizers
 from edgedog.train.resolution import ViewSet, coarser
-from edgedog.train.strategy import DensityStrategy, EdgeViews, StrategyState
+from edgedog.train.strategy import DensityStrategy, StrategyState
 from edgedog.train.targets import (
     LearnedShift,
     corrects_silhouettes,
@@ -151,17 +151,16 @@ class Trainer:
         self.detector = self._edge_maps(config.maps.detector)
         # The settings left to the maps' detector are fixed now: checkpoints and log.json hold them.
         self.config = config = for_detector(config, self.detector)
-        self.cameras = [RasterCamera.from_camera(scene.camera(i)) for i in range(len(scene))]
         self.map_shift = fixed_shift(config, scene, self.detector, self.own_maps)
         outlines, unreadable = scene_outlines(scene) if corrects_silhouettes(config, scene) else (None, [])
         raw_maps = [scene.load_edge_map(i, self.detector) for i in range(len(scene))]
         maps, masks, self.silhouette = prepare_maps(raw_maps, config, self.map_shift, outlines)
         if self.silhouette is not None:
             self.silhouette["views_without_mask"] = unreadable
-        self.targets = [torch.from_numpy(m) for m in maps]
-        self.views = EdgeViews(self.cameras, scene.cameras, [torch.from_numpy(m) for m in masks])
-        self.fine = ViewSet(1, self.cameras, self.targets, self.views.edge_masks)
-        self.coarse = coarser(self.fine, scene.cameras, config.schedule.coarse_downscale)
+        pinholes = scene.cameras
+        self.views = ViewSet(1, pinholes, [RasterCamera.from_camera(c) for c in pinholes],
+                             [torch.from_numpy(m) for m in maps], [torch.from_numpy(m) for m in masks])
+        self.coarse = coarser(self.views, config.schedule.coarse_downscale)
         self.learned_shift = LearnedShift(config) if config.maps.correction == "learned" else None
         self.strategy = DensityStrategy(config, self.raster)
         self.controls = Controls(config.strategy.keep_ratio, config.loss.weighting)
@@ -214,6 +213,16 @@ class Trainer:
                                  if tune else None)
 
     # --- training
+    @property
+    def cameras(self) -> list[RasterCamera]:
+        """The rasterizer's cameras of the views, at the maps' resolution."""
+        return self.views.cameras
+
+    @property
+    def targets(self) -> list[torch.Tensor]:
+        """(H, W) maps fitted, at their own resolution (after the map corrections)."""
+        return self.views.targets
+
     @property
     def epoch(self) -> int:
         return self.step_index // len(self.cameras)
@@ -281,7 +290,7 @@ class Trainer:
 
     def views_at(self, epoch: int) -> ViewSet:
         """The views a step of `epoch` renders: coarse before `schedule.fine_from_epoch`."""
-        return self.coarse if epoch < self.config.schedule.fine_from_epoch else self.fine
+        return self.coarse if epoch < self.config.schedule.fine_from_epoch else self.views
 
     def _orientation_losses(self, epoch: int) -> None:
         """EdgeGaussians' direction and scale-ratio terms, each weighted to `factor` times the
