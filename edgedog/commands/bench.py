@@ -61,6 +61,18 @@ def _add_batch_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--quiet", action="store_true", help="no line per finished run")
 
 
+def _add_run_arguments(parser: argparse.ArgumentParser, scene_help: str, out_help: str, set_help: str,
+                       preset: str | None = DEFAULT_PRESET) -> None:
+    """The scene, --out, --preset (default `preset`; None: no --preset) and --set of a bench that
+    trains runs."""
+    parser.add_argument("scene", type=Path, help=scene_help)
+    parser.add_argument("--out", type=Path, required=True, help=out_help)
+    if preset is not None:
+        parser.add_argument("--preset", choices=PRESETS, default=preset)
+    parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                        help=set_help)
+
+
 def add_parser(subparsers) -> None:
     parser = subparsers.add_parser("bench", help="run a benchmark and print its JSON")
     kinds = parser.add_subparsers(dest="benchmark", required=True, metavar="BENCHMARK")
@@ -93,11 +105,8 @@ def add_parser(subparsers) -> None:
                     "(per row: mean and sample standard deviation over the seeds) beside the batch's "
                     "tables (OUT/batch.*). The runs go through the batch path (see edgedog batch); "
                     "finished runs in OUT are reused, unfinished ones resumed.")
-    ablation.add_argument("scene", type=Path, help="scene folder with ground truth")
-    ablation.add_argument("--out", type=Path, required=True, help="folder for the runs and the tables")
-    ablation.add_argument("--preset", choices=PRESETS, default=DEFAULT_PRESET)
-    ablation.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                          help="override a training setting for every row (repeatable)")
+    _add_run_arguments(ablation, "scene folder with ground truth", "folder for the runs and the tables",
+                       "override a training setting for every row (repeatable)")
     ablation.add_argument("--tables", default="components,weighting",
                           help="comma-separated: components (Table 3), weighting (Table 4), corrections "
                                "(the maps' bias: calibrated shift, learned shift, thin maps, profile loss, "
@@ -115,16 +124,12 @@ def add_parser(subparsers) -> None:
                     "score every layer, every cumulative stack and the direct run, and write "
                     "OUT/layers.json, OUT/layers.md and the figure OUT/layers.png (rendered offscreen). "
                     "Finished runs are reused, unfinished ones resumed.")
-    layers.add_argument("scene", type=Path, help="scene folder")
-    layers.add_argument("--out", type=Path, required=True,
-                        help="folder for the runs, the table and the figure")
-    layers.add_argument("--preset", choices=PRESETS, default="preview")
+    _add_run_arguments(layers, "scene folder", "folder for the runs, the table and the figure",
+                       "override a training setting of every run (repeatable)", preset="preview")
     layers.add_argument("--layers", default="L0,L1,L2", metavar="L0,L1,...", help="the levels to stack")
     layers.add_argument("--level", dest="levels", action="append", default=[],
                         metavar="NAME=DETECTOR[@FLOOR]",
                         help="define a level's maps (as for edgedog train --level)")
-    layers.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                        help="override a training setting of every run (repeatable)")
     layers.add_argument("--no-figure", action="store_true", help="skip the figure (needs EGL)")
     layers.add_argument("--quiet", action="store_true", help="no progress bars")
     layers.set_defaults(run=run_layers)
@@ -133,8 +138,6 @@ def add_parser(subparsers) -> None:
 
 
 def _add_steps(kinds) -> None:
-    from edgedog.train.config import DEFAULT_PRESET
-
     steps = kinds.add_parser(
         "steps", help="where a training step's time goes: time per step of each stage of the trainer",
         description="Train one run in OUT/run (a new folder) as edgedog train does, recording evenly "
@@ -143,11 +146,8 @@ def _add_steps(kinds) -> None:
                     "Adam, ...), the rest of the step, and the operators with the most time of their own. "
                     "The profiler slows the recorded steps a little; the run's own time per step is "
                     "printed beside them.")
-    steps.add_argument("scene", type=Path, help="scene folder")
-    steps.add_argument("--out", type=Path, required=True, help="a new folder for the run and the tables")
-    steps.add_argument("--preset", choices=PRESETS, default=DEFAULT_PRESET)
-    steps.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                       help="override a training setting (repeatable)")
+    _add_run_arguments(steps, "scene folder", "a new folder for the run and the tables",
+                       "override a training setting (repeatable)")
     steps.add_argument("--windows", type=int, default=10, help="recorded windows, spread over the run")
     steps.add_argument("--window-steps", type=int, default=20, help="steps recorded per window")
     steps.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -165,13 +165,11 @@ def _add_speed_error(kinds) -> None:
                     "the batch path (see edgedog batch); finished ones in OUT are reused, unfinished "
                     "ones resumed. Budgets: "
                     + "; ".join(f"{b.name}: {b.description}" for b in BUDGETS.values()) + ".")
-    speed.add_argument("scene", type=Path, help="scene folder with ground truth")
-    speed.add_argument("--out", type=Path, required=True, help="folder for the runs and the summary")
+    _add_run_arguments(speed, "scene folder with ground truth", "folder for the runs and the summary",
+                       "override a training setting for every budget, before the budget's own downscale "
+                       "or epoch share (repeatable)", preset=None)
     speed.add_argument("--budgets", default=DEFAULT_BUDGETS,
                        help=f"comma-separated budget names (default {DEFAULT_BUDGETS})")
-    speed.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                       help="override a training setting for every budget, before the budget's own "
-                            "downscale or epoch share (repeatable)")
     speed.add_argument("--evals", type=int, default=5,
                        help="evaluation points per run, evenly spaced in epochs, the last at the end")
     _add_batch_options(speed)
