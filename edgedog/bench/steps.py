@@ -98,7 +98,7 @@ def window_schedule(total_steps: int, windows: int, window_steps: int):
 def profile_training(trainer, windows: int, window_steps: int) -> StepProfile:
     """Train `trainer` to its end, recording `windows` windows of `window_steps` steps; writes
     the run's outputs as `Trainer.run` does."""
-    total = trainer.config.schedule.epochs * len(trainer.cameras) - trainer.step_index
+    total = trainer.total_steps - trainer.step_index
     result = StepProfile(total_steps=total)
     with warnings.catch_warnings(), profile(
             activities=[ProfilerActivity.CPU], schedule=window_schedule(total, windows, window_steps),

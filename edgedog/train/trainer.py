@@ -228,6 +228,11 @@ class Trainer:
         return self.step_index // len(self.cameras)
 
     @property
+    def total_steps(self) -> int:
+        """Steps of the whole run: one per view per epoch."""
+        return self.config.schedule.epochs * len(self.cameras)
+
+    @property
     def done(self) -> bool:
         return self.epoch >= self.config.schedule.epochs
 
@@ -329,8 +334,7 @@ class Trainer:
 
     def run(self) -> None:
         """Train to the end (resuming where a checkpoint left off), then write the outputs."""
-        total = self.config.schedule.epochs * len(self.cameras)
-        with tqdm(total=total, initial=self.step_index, unit="step", disable=not self.progress,
+        with tqdm(total=self.total_steps, initial=self.step_index, unit="step", disable=not self.progress,
                   desc="train") as bar:
             while not self.done:
                 if self.controls.read()[2]:
