@@ -60,7 +60,10 @@ class Budget:
         """The preset with `overrides` (--set) applied, then this budget's own change: the name
         stays true (preview-d4 trains at downscale 4 whatever --set says) and preview-50 has half
         the epochs of whatever preview has."""
-        config = with_overrides(preset(self.preset), overrides)
+        return self.applied(with_overrides(preset(self.preset), overrides))
+
+    def applied(self, config: TrainConfig) -> TrainConfig:
+        """`config` (the preset with the --set overrides) with this budget's own change."""
         if self.downscale is not None:
             config = with_values(config, {"maps.downscale": self.downscale})
         return with_epochs(config, max(1, round(config.schedule.epochs * self.epoch_share)))
@@ -242,7 +245,7 @@ def budget_specs(scene: Path, budgets: list[Budget], overrides: list[str],
     specs = []
     for budget in budgets:
         base = with_overrides(preset(budget.preset), overrides)
-        config = budget.config(overrides)
+        config = budget.applied(base)
         specs += [spec_of_config(scene, budget.preset, budget.name, base, config, seed) for seed in seeds]
     return specs
 
