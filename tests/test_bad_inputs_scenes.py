@@ -328,6 +328,7 @@ CASES = [
     Case("init-one-view-triangulation", lambda d: (["init", nerf(d, frames=1), "--method", "triangulate"],
                                                    ["triangulation needs at least 2 views"])),
     Case("init-uniform-count-zero", with_options("--uniform-count", "0", command="init")),
+    Case("init-match-neighbours-huge", with_options("--match-neighbours", "100000", command="init")),
     Case("make-scene-size-huge", make_scene("--size", "100000")),
     Case("make-scene-views-huge", make_scene("--views", "100000")),
     Case("make-scene-noise-nan", make_scene("--image-noise", "nan")),

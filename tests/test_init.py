@@ -18,10 +18,11 @@ from edgedog.init import (
     nearest_neighbour_scales,
     uniform_init,
 )
-from edgedog.init.triangulate import edge_support
+from edgedog.init.triangulate import edge_support, nearest_view_pairs
 from edgedog.scenes import load_scene
 from edgedog.scenes.camera import Camera
 from edgedog.scenes.common import look_at_point
+from edgedog.synthetic.cameras import orbit_cameras
 from edgedog.train.config import TrainConfig
 from tests.helpers.paths import shared_path as shared
 
@@ -140,13 +141,45 @@ def test_edgedog_init_starts_as_training_does():
     assert (DEFAULTS.count, DEFAULTS.side, DEFAULTS.edge_threshold) == (10000, 1.1, 0.3)
 
 
+# --- which views are matched -------------------------------------------------------------------
+
+def test_view_pairs_are_each_views_nearest_cameras_facing_its_way():
+    cameras = orbit_cameras(40, 64)
+    pairs = nearest_view_pairs(cameras, 6)
+    centres = np.stack([c.center for c in cameras])
+    partners = {i: set() for i in range(40)}
+    for i, j in pairs:
+        assert i < j
+        partners[i].add(j)
+        partners[j].add(i)
+    for i in range(40):
+        distance = np.linalg.norm(centres - centres[i], axis=1)
+        distance[i] = np.inf
+        nearest = set(np.argsort(distance)[:6].tolist())
+        assert nearest <= partners[i]  # its own 6, plus the views that chose it
+    assert len(pairs) <= 40 * 6 and len(pairs) < 40 * 39 // 2
+    # Every pair faces the same way: on an orbit, the nearest centres are the nearest directions.
+    assert all(cameras[i].forward @ cameras[j].forward > 0 for i, j in pairs)
+    assert nearest_view_pairs(cameras, 0) == [(i, j) for i in range(40) for j in range(i + 1, 40)]
+    assert nearest_view_pairs(cameras[:5], 10) == nearest_view_pairs(cameras[:5], 0)
+
+
+def test_view_pairs_skip_cameras_facing_away_however_near():
+    K = np.array([[500.0, 0, 320], [0, 500.0, 240], [0, 0, 1]])
+    ahead, behind, far_ahead = np.eye(4), np.diag([-1.0, 1.0, -1.0, 1.0]), np.eye(4)
+    far_ahead[0, 3] = -5.0  # centre 5 units to the side, facing the same way
+    cameras = [Camera(K, w2c, 640, 480) for w2c in (ahead, behind, far_ahead)]
+    # The camera at the same place facing the other way is the nearest but is never paired.
+    assert nearest_view_pairs(cameras, 1) == [(0, 2)]
+
+
 # --- DTU scan 37: real photos, given cameras ---------------------------------------------------
 
 @pytest.fixture(scope="module")
 def dtu_triangulated(tmp_path_factory):
     scene = load_scene(shared("dtu_scan37"), downscale=2)
     workdir = tmp_path_factory.mktemp("dtu_colmap")
-    result = initialize(scene, workdir=workdir, min_points=200, views=DTU_VIEWS, max_image_size=800)
+    result = initialize(scene, workdir=workdir, min_points=200, views=DTU_VIEWS)
     return scene, result
 
 
@@ -158,6 +191,8 @@ def test_dtu_triangulation_with_known_cameras(dtu_triangulated):
     assert len(result) >= 500
     assert result.report["triangulated"] == result.report["kept"] == len(result)
     assert result.report["edge_filter"] == "none"
+    assert result.report["matched_pairs"] == 45  # 10 views: each with its 10 nearest is every pair
+    assert result.report["max_image_size"] == 800  # SIFT at the loaded (training) resolution
     assert result.report["mean_reprojection_error_px"] < 2.0
     assert "triangulation kept" in result.report["reason"]
     assert np.all(np.isfinite(result.scales)) and np.all(result.scales > 0)

@@ -37,6 +37,9 @@ def add_parser(subparsers) -> None:
     parser.add_argument("--edge-threshold", type=float, default=DEFAULTS.edge_threshold,
                         help="edge-map value a kept point lands on in 2+ views (default "
                              f"{DEFAULTS.edge_threshold}, as `edgedog train`)")
+    parser.add_argument("--match-neighbours", type=int, default=DEFAULTS.match_neighbours,
+                        help="triangulation matches each view with this many nearest views facing its way; "
+                             f"0: every pair (default {DEFAULTS.match_neighbours}, as `edgedog train`)")
     parser.add_argument("--out", type=Path, default=None, help="write the points as a PLY (x, y, z, scale)")
     add_scene_options(parser)
     parser.set_defaults(run=run)
@@ -55,9 +58,9 @@ def settings_of(args: argparse.Namespace):
     if args.min_points < 0:
         raise ConfigError(f"--min-points {args.min_points}: must not be negative")
     options = {"method": "--method", "count": "--uniform-count", "side": "--uniform-side",
-               "edge_threshold": "--edge-threshold"}
+               "edge_threshold": "--edge-threshold", "match_neighbours": "--match-neighbours"}
     values = {"method": args.method, "count": args.uniform_count, "side": args.uniform_side,
-              "edge_threshold": args.edge_threshold}
+              "edge_threshold": args.edge_threshold, "match_neighbours": args.match_neighbours}
     for name, value in values.items():
         try:
             InitSettings(**{name: value})

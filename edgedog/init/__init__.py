@@ -57,7 +57,7 @@ def sfm_points_on_edges(scene: Scene, detector: str | None = None, min_edge_view
 
 def initialize(scene: Scene, settings: InitSettings = DEFAULTS, workdir: Path | None = None,
                detector: str | None = None, min_points: int = 500, seed: int = 0, *,
-               views: list[int] | None = None, max_image_size: int = 1600) -> InitialPoints:
+               views: list[int] | None = None, max_image_size: int | None = None) -> InitialPoints:
     """Initial points for a scene.
 
     Args:
@@ -72,7 +72,7 @@ def initialize(scene: Scene, settings: InitSettings = DEFAULTS, workdir: Path | 
         min_points: fewest points "auto" accepts before falling back.
         seed: seed of the uniform sampling.
         views: view indices used for triangulation and edge filtering (default all).
-        max_image_size: longest image side for SIFT.
+        max_image_size: longest image side for SIFT (None: the scene's as loaded, at most 1600).
     Returns:
         InitialPoints whose `report` holds "requested", the chosen "method", a "reason" and,
         for "auto", every "attempts" made with its counts.
@@ -111,7 +111,8 @@ def initialize(scene: Scene, settings: InitSettings = DEFAULTS, workdir: Path | 
         folder = Path(workdir) if workdir is not None else Path(temporary)
         folder.mkdir(parents=True, exist_ok=True)
         result = triangulate_known_poses(scene, folder, detector=detector, edge_threshold=threshold,
-                                         max_image_size=max_image_size, views=views)
+                                         max_image_size=max_image_size, views=views,
+                                         match_neighbours=settings.match_neighbours)
     attempts.append({"method": "triangulated", "points": len(result),
                      "triangulated": result.report["triangulated"]})
     if method == "triangulate":

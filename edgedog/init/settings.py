@@ -18,6 +18,10 @@ MAX_LOGIT = 20.0
 """Raw values that go through a sigmoid or exp: sigmoid(20) is 1 in float32, and exp overflows
 past 88."""
 
+MAX_MATCH_NEIGHBOURS = 100
+"""Views each view's SIFT features are matched with: 100 is past any overlap worth matching
+(EMAP's and DTU's captures are 50-64 views in all)."""
+
 Count = Annotated[int, Range(1, MAX_PRIMITIVES)]
 """A number of primitives."""
 Logit = Annotated[float, Range(-MAX_LOGIT, MAX_LOGIT)]
@@ -44,6 +48,10 @@ class InitSettings(Settings):
     edge_threshold: Annotated[float, Range(0, 1, open_low=True)] = 0.3
     """Triangulated and SfM points are kept where the edge map is >= this in 2+ views (looser
     than maps.edge_threshold: a point need only land near an edge)."""
+    match_neighbours: Annotated[int, Range(0, MAX_MATCH_NEIGHBOURS)] = 10
+    """Triangulation matches each view with this many others, the nearest camera centres among
+    the views facing its way (optical axes within 90 degrees), instead of every pair: matching
+    grows with views x neighbours, not views squared. 0: every pair."""
     opacity: Annotated[float, Range(0, 1, open_low=True, open_high=True)] = 0.08
     """Initial opacity of every primitive."""
     k: tuple[Logit, Logit] = (0.0, 0.0)

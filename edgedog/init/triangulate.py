@@ -27,6 +27,9 @@ from edgedog.scenes.scene import Scene
 # Files COLMAP reads directly when they are 8-bit grey or RGB; anything else is converted.
 # Scale clip range of the triangulated points, as fractions of the bounds' largest extent.
 SCALE_RANGE = (0.0005, 0.02)
+MAX_SIFT_SIZE = 1600
+"""Longest image side SIFT sees by default: COLMAP's own default is 3200, and a point finer
+than 1/1600 of the view is finer than the edges trained from it."""
 
 
 def edge_support(scene: Scene, points: np.ndarray, views: list[int], detector: str,
@@ -124,21 +127,57 @@ def _known_reconstruction(database_path: Path, cameras: dict[str, Camera], image
     return reconstruction
 
 
+def nearest_view_pairs(cameras: list[Camera], neighbours: int) -> list[tuple[int, int]]:
+    """The view pairs worth matching: each view with its `neighbours` nearest camera centres
+    among the views facing its way (optical axes within 90 degrees), both ways merged.
+
+    Args:
+        cameras: the views' cameras.
+        neighbours: views paired with each view; 0 (or >= len - 1): every pair.
+    Returns:
+        Sorted pairs (i, j), i < j, of indices into `cameras`.
+    """
+    count = len(cameras)
+    if neighbours == 0 or neighbours >= count - 1:
+        return [(i, j) for i in range(count) for j in range(i + 1, count)]
+    centres = np.stack([c.center for c in cameras])
+    axes = np.stack([c.forward for c in cameras])
+    distance = np.linalg.norm(centres[:, None] - centres[None], axis=-1)
+    distance[axes @ axes.T <= 0] = np.inf  # facing away: they see other sides of the scene
+    np.fill_diagonal(distance, np.inf)
+    pairs = set()
+    for i, row in enumerate(distance):
+        for j in np.argsort(row, kind="stable")[:neighbours]:
+            if np.isfinite(row[j]):
+                pairs.add((min(i, int(j)), max(i, int(j))))
+    return sorted(pairs)
+
+
+def _write_pairs(path: Path, names: list[str], pairs: list[tuple[int, int]]) -> None:
+    """COLMAP's match list: one pair of image names per line."""
+    path.write_text("".join(f"{names[i]} {names[j]}\n" for i, j in pairs), encoding="utf-8")
+
+
 def triangulate_known_poses(scene: Scene, workdir: Path, detector: str | None = None,
-                            max_image_size: int = 1600, min_edge_views: int = 2,
+                            max_image_size: int | None = None, min_edge_views: int = 2,
                             edge_threshold: float = InitSettings.edge_threshold,
-                            views: list[int] | None = None) -> InitialPoints:
+                            views: list[int] | None = None,
+                            match_neighbours: int = InitSettings.match_neighbours) -> InitialPoints:
     """Triangulate SIFT matches with the scene's cameras; optionally keep only edge points.
 
     Args:
         scene: the posed views.
-        workdir: folder for COLMAP's database, image links and model (replaced if present).
+        workdir: folder for COLMAP's database, image links, match list and model (replaced if
+            present).
         detector: pseudo-edge maps to filter on; None (or maps the scene lacks) keeps every
             triangulated point.
-        max_image_size: images are downsized to this longest side for SIFT.
+        max_image_size: images are downsized to this longest side for SIFT; None: the scene's
+            resolution as loaded (the training resolution, features finer than its pixels fit
+            nothing), at most MAX_SIFT_SIZE.
         min_edge_views: a point is kept when it projects onto an edge in this many views.
         edge_threshold: edge-map value that counts as an edge.
         views: indices of the views to use (default all).
+        match_neighbours: views each view is matched with (`nearest_view_pairs`); 0: all.
     Returns:
         InitialPoints with method "triangulated"; it may hold few or no points (textureless
         renders): `report` says how many were triangulated and kept.
@@ -152,7 +191,10 @@ def triangulate_known_poses(scene: Scene, workdir: Path, detector: str | None = 
         raise ValueError(f"view indices must be in [0, {len(scene)}), got {views}")
     started = time.perf_counter()
     workdir = Path(workdir)
-    for stale in ("images", "sparse", "database.db"):
+    if max_image_size is None:
+        max_image_size = min(MAX_SIFT_SIZE, max(max(scene.camera(v).width, scene.camera(v).height)
+                                                for v in views))
+    for stale in ("images", "sparse", "database.db", "pairs.txt"):
         target = workdir / stale
         if target.is_dir() and not target.is_symlink():
             shutil.rmtree(target)
@@ -160,6 +202,8 @@ def triangulate_known_poses(scene: Scene, workdir: Path, detector: str | None = 
             target.unlink()
     image_dir, database_path, model_dir = workdir / "images", workdir / "database.db", workdir / "sparse"
     cameras = _prepare_images(scene, views, image_dir)
+    pairs = nearest_view_pairs([scene.camera(v) for v in views], match_neighbours)
+    _write_pairs(workdir / "pairs.txt", list(cameras), pairs)
 
     extraction = pycolmap.FeatureExtractionOptions()
     extraction.max_image_size = int(max_image_size)
@@ -168,7 +212,10 @@ def triangulate_known_poses(scene: Scene, workdir: Path, detector: str | None = 
                                   camera_mode=pycolmap.CameraMode.PER_IMAGE,
                                   extraction_options=extraction, device=pycolmap.Device.cpu)
         reconstruction = _known_reconstruction(database_path, cameras, image_dir)
-        pycolmap.match_exhaustive(database_path, device=pycolmap.Device.cpu)
+        pycolmap.match_image_pairs(database_path,
+                                   pairing_options=pycolmap.ImportedPairingOptions(
+                                       match_list_path=str(workdir / "pairs.txt")),
+                                   device=pycolmap.Device.cpu)
         model_dir.mkdir(parents=True, exist_ok=True)
         reconstruction = pycolmap.triangulate_points(reconstruction, database_path, image_dir,
                                                      model_dir, refine_intrinsics=False)
@@ -179,6 +226,7 @@ def triangulate_known_poses(scene: Scene, workdir: Path, detector: str | None = 
     report: dict[str, Any] = {
         "views": len(views),
         "max_image_size": int(max_image_size),
+        "matched_pairs": len(pairs),
         "triangulated": int(len(positions)),
         "mean_track_length": float(track.mean()) if len(track) else 0.0,
         "mean_reprojection_error_px": float(reconstruction.compute_mean_reprojection_error())
