@@ -14,6 +14,7 @@ from edgedog.scenes import load_scene
 from edgedog.train import losses
 from edgedog.train.config import TrainConfig, for_detector, preset, with_epochs, with_overrides, with_settings
 from edgedog.train.model import GROUPS, EdgeModel
+from edgedog.train.resolution import ViewSet
 from edgedog.train.trainer import Trainer, _finite_grads
 
 
@@ -148,6 +149,68 @@ def test_depth_uncertainty_matches_a_replicate_padded_sobel_convolution():
     magnitude = grad.pow(2).sum(0).sqrt()
     expected = (magnitude - magnitude.min()) / (magnitude.max() - magnitude.min())
     assert torch.allclose(losses.depth_uncertainty(depth), expected, atol=1e-6)
+
+
+def test_the_sampled_loss_takes_the_edges_and_as_many_distinct_background_pixels():
+    mask = torch.rand(40, 30, generator=torch.Generator().manual_seed(1)) > 0.9
+    edges = losses.edge_pixels(mask)
+    sample = losses.edge_and_background_sample(edges, mask.numel(), torch.Generator().manual_seed(7))
+    flat = mask.reshape(-1)
+    count = int(flat.sum())
+    assert torch.equal(sample[:count], torch.nonzero(flat).squeeze(1))
+    background = sample[count:]
+    assert len(background) == count and len(set(background.tolist())) == count
+    assert not flat[background].any()
+    # The same draw as picking from the list of background pixels (EdgeGaussians' way).
+    listed = torch.nonzero(~flat).squeeze(1)
+    pick = torch.randperm(len(listed), generator=torch.Generator().manual_seed(7))[:count]
+    assert torch.equal(background, listed[pick])
+
+
+def test_the_sampled_loss_is_the_mean_of_the_edge_and_background_losses_in_expectation():
+    generator = torch.Generator().manual_seed(3)
+    mask = torch.zeros(10, 12, dtype=torch.bool)
+    mask[4, 2:10] = True  # 8 edge pixels, 112 background
+    render, target = torch.rand(10, 12, generator=generator), mask.float()
+    edges, draws = losses.edge_pixels(mask), 4000
+    counts = torch.zeros(mask.numel())
+    total = 0.0
+    for _ in range(draws):
+        sample = losses.edge_and_background_sample(edges, mask.numel(), generator)
+        counts[sample[8:]] += 1
+        total += float(losses.projection_loss(render, target, None, sample))
+    error = (render - target).abs()
+    expected = 0.5 * (error[mask].mean() + error[~mask].mean())
+    assert abs(total / draws - float(expected)) < 0.01
+    # Every background pixel is drawn as often (8 of 112 per draw): uniform, within 5 sigma.
+    frequency = counts[~mask.reshape(-1)] / draws
+    p = 8 / 112
+    assert torch.all((frequency - p).abs() < 5 * (p * (1 - p) / draws) ** 0.5)
+    assert counts[mask.reshape(-1)].sum() == 0
+
+
+def test_the_sampled_loss_at_the_extremes():
+    generator = torch.Generator().manual_seed(0)
+    none, every = torch.zeros(6, 5, dtype=torch.bool), torch.ones(6, 5, dtype=torch.bool)
+    assert len(losses.edge_and_background_sample(losses.edge_pixels(none), 30, generator)) == 0
+    assert torch.equal(losses.edge_and_background_sample(losses.edge_pixels(every), 30, generator),
+                       torch.arange(30))
+    most = every.clone()
+    most[0, :3] = False  # more edges than background: every background pixel, once
+    sample = losses.edge_and_background_sample(losses.edge_pixels(most), 30, generator)
+    assert sorted(sample.tolist()) == list(range(30))
+
+
+def test_a_view_without_edges_keeps_the_full_loss(box, tmp_path):
+    trainer = Trainer(box, small_config(epochs=3, sampled_every=1), tmp_path / "run", progress=False)
+    views = trainer.views
+    blank = [torch.zeros_like(views.targets[0])] + views.targets[1:]
+    trainer.views = trainer.coarse = ViewSet(views.factor, views.pinholes, views.cameras, blank,
+                                             [torch.zeros_like(views.edge_masks[0])] + views.edge_masks[1:])
+    trainer.run()
+    assert len(trainer.views.edge_pixels[0]) == 0
+    assert all(np.isfinite(epoch["loss"]) for epoch in trainer.history)
+    assert trainer.bad_gradients == 0
 
 
 def test_non_finite_gradients_never_reach_the_parameters(box, tmp_path):

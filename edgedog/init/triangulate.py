@@ -79,7 +79,9 @@ def _prepare_images(scene: Scene, views: list[int], image_dir: Path) -> dict[str
         if _needs_conversion(view.image_path, view.camera):
             name = f"{stem}.png"
             rgb = np.clip(np.rint(scene.load_image(index) * 255.0), 0, 255).astype(np.uint8)
-            if not cv2.imwrite(str(image_dir / name), cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR)):
+            # Uncompressed: the copy lives only as long as the triangulation reads it.
+            if not cv2.imwrite(str(image_dir / name), cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR),
+                               [cv2.IMWRITE_PNG_COMPRESSION, 0]):
                 raise OSError(f"could not write {image_dir / name}")
             names[name] = scene.camera(index)
         else:

@@ -8,7 +8,7 @@ coarse and until when; from `fine_from_epoch` on every step renders the maps' ow
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import torch
@@ -16,6 +16,7 @@ import torch
 from edgedog.renderer.primitives import RasterCamera
 from edgedog.scenes.camera import Camera
 from edgedog.scenes.images import resize_to
+from edgedog.train.losses import edge_pixels
 
 
 @dataclass(frozen=True)
@@ -28,6 +29,8 @@ class ViewSet:
         cameras: the same cameras as the rasterizer takes them (renders, Fisher information).
         targets: (H, W) float32 maps to fit.
         edge_masks: (H, W) bool edge pixels (the sampled loss's edges, the projection cull).
+        edge_pixels: (E,) int32 sorted flat indices of each mask's edge pixels (the sampled loss
+            draws around them at every fifth step; found once here).
     """
 
     factor: int
@@ -35,6 +38,10 @@ class ViewSet:
     cameras: list[RasterCamera]
     targets: list[torch.Tensor]
     edge_masks: list[torch.Tensor]
+    edge_pixels: list[torch.Tensor] = field(init=False, repr=False)
+
+    def __post_init__(self):
+        object.__setattr__(self, "edge_pixels", [edge_pixels(mask) for mask in self.edge_masks])
 
 
 def coarse_size(width: int, height: int, factor: int) -> tuple[int, int]:

@@ -99,7 +99,8 @@ def _finite_grads(*models: EdgeModel) -> int:
     """Zero non-finite gradient entries (no NaN ever reaches the parameters); returns how many."""
     bad = 0
     for tensor in (t for model in models for t in model.tensors().values()):
-        if tensor.grad is not None:
+        # A finite sum means every entry is finite: one pass, and no mask, at almost every step.
+        if tensor.grad is not None and not torch.isfinite(tensor.grad.sum()):
             mask = ~torch.isfinite(tensor.grad)
             if mask.any():
                 bad += int(mask.sum())
@@ -262,8 +263,11 @@ class Trainer:
                 weight = losses.uncertainty_weight(losses.depth_uncertainty(out.depth.detach()), weighting)
         with record_function("loss"):
             sample = None
-            if epoch >= c.sampled_from_epoch and self.step_index % c.sampled_every == 0:
-                sample = losses.edge_and_background_sample(views.edge_masks[view], self.generator)
+            # A view without edge pixels has nothing to sample around: its loss stays the full one.
+            if (epoch >= c.sampled_from_epoch and self.step_index % c.sampled_every == 0
+                    and len(views.edge_pixels[view])):
+                sample = losses.edge_and_background_sample(views.edge_pixels[view],
+                                                           views.edge_masks[view].numel(), self.generator)
             render, target = out.image[..., 0], views.targets[view]
             if self.config.maps.edge_profile == "profile":
                 render = blur_to_profile(render, self.config.maps.profile_sigma / views.factor)
