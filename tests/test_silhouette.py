@@ -9,7 +9,7 @@ import cv2
 import numpy as np
 import pytest
 
-from edgedog.edges.silhouette import Outline, OutlinePull, measure_silhouette_profile
+from edgedog.edges.silhouette import Outline, OutlinePull, distances_read, measure_silhouette_profile
 from edgedog.errors import InputError
 from edgedog.train.targets import corrects_silhouettes, prepare_maps, scene_outlines
 from edgedog.train.trainer import Trainer
@@ -49,6 +49,25 @@ def test_outline_distance_and_normals_of_an_antialiased_disc():
     radial = np.stack([xs - CENTRE[0], ys - CENTRE[1]], axis=-1)
     radial /= np.linalg.norm(radial, axis=-1, keepdims=True)
     assert np.min(np.sum(outline.normal[near] * radial[near], axis=-1)) > 0.97
+
+
+@pytest.mark.parametrize("reach", [1.0, 3.0, 12.0])
+def test_an_outline_made_within_reach_equals_the_whole_views_where_it_is_read(reach):
+    # The disc in a corner of a larger view: the distance transforms then run on its box only.
+    coverage = np.zeros((230, 310), np.float32)
+    coverage[5:5 + SIZE, 190:190 + SIZE] = disc_coverage()
+    whole, boxed = Outline.from_coverage(coverage), Outline.from_coverage(coverage, distances_read(reach))
+    read = np.abs(whole.distance) <= distances_read(reach)
+    assert read.sum() > 1000
+    assert np.array_equal(boxed.distance[read], whole.distance[read])  # to the bit
+    assert np.array_equal(boxed.normal[read], whole.normal[read])
+    assert np.all(np.abs(boxed.distance[~read]) > distances_read(reach))
+    edge_map = np.random.default_rng(0).random(coverage.shape).astype(np.float32)
+    pulls = [OutlinePull.towards(outline, 1.3, reach) for outline in (whole, boxed)]
+    assert np.array_equal(pulls[0].apply(edge_map), pulls[1].apply(edge_map))
+    assert np.array_equal(pulls[0].apply(edge_map > 0.9, nearest=True), pulls[1].apply(edge_map > 0.9, nearest=True))
+    profiles = [measure_silhouette_profile([edge_map], [outline]) for outline in (whole, boxed)]
+    assert profiles[0].to_dict() == profiles[1].to_dict()
 
 
 @pytest.mark.parametrize("drawn_at", [-0.6, 0.0, 1.2])

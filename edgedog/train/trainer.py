@@ -153,7 +153,8 @@ class Trainer:
         # The settings left to the maps' detector are fixed now: checkpoints and log.json hold them.
         self.config = config = for_detector(config, self.detector)
         self.map_shift = fixed_shift(config, scene, self.detector, self.own_maps)
-        outlines, unreadable = scene_outlines(scene) if corrects_silhouettes(config, scene) else (None, [])
+        outlines, unreadable = (scene_outlines(scene, config.maps.silhouette_reach)
+                                if corrects_silhouettes(config, scene) else (None, []))
         raw_maps = [scene.load_edge_map(i, self.detector) for i in range(len(scene))]
         maps, masks, self.silhouette = prepare_maps(raw_maps, config, self.map_shift, outlines)
         if self.silhouette is not None:
