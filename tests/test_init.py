@@ -12,10 +12,13 @@ from edgedog.builtin.scene import ground_truth_points, write_box_scene
 from edgedog.errors import ConfigError, InputError
 from edgedog.init import (
     DEFAULTS,
+    PROBE_VIEWS,
     InitialPoints,
     InitSettings,
     initialize,
+    keypoints_needed,
     nearest_neighbour_scales,
+    spread_views,
     uniform_init,
 )
 from edgedog.init.triangulate import edge_support, nearest_view_pairs
@@ -114,12 +117,16 @@ def test_auto_falls_back_to_uniform_on_featureless_renders(box_scene, tmp_path):
                         min_points=50, seed=1)
     assert result.method == "uniform"
     assert result.report["requested"] == "auto"
-    assert result.report["attempts"][0]["method"] == "triangulated"
-    assert result.report["attempts"][0]["points"] < 50
-    assert "fewer than 50" in result.report["reason"]
+    # The keypoints of a few views show it before every view is matched.
+    attempt = result.report["attempts"][0]
+    assert attempt["method"] == "triangulated" and attempt["skipped"]
+    assert attempt["probed_views"] == PROBE_VIEWS
+    assert attempt["keypoints_per_view"] < keypoints_needed(50, len(box_scene))
+    assert "SIFT keypoints each" in result.report["reason"]
+    assert "too few image features" in result.report["reason"]
     lo, hi = box_scene.bounds
     assert np.all((result.positions >= lo) & (result.positions <= hi))
-    assert len(list((tmp_path / "colmap" / "images").glob("*.png"))) == len(box_scene)
+    assert len(list((tmp_path / "colmap" / "probe" / "images").glob("*.png"))) == PROBE_VIEWS
     with pytest.raises(InputError, match="triangulation found no points"):
         initialize(box_scene, InitSettings(method="triangulate"), workdir=tmp_path / "colmap",
                    views=[0, 1, 2, 3])
@@ -162,6 +169,14 @@ def test_view_pairs_are_each_views_nearest_cameras_facing_its_way():
     assert all(cameras[i].forward @ cameras[j].forward > 0 for i, j in pairs)
     assert nearest_view_pairs(cameras, 0) == [(i, j) for i in range(40) for j in range(i + 1, 40)]
     assert nearest_view_pairs(cameras[:5], 10) == nearest_view_pairs(cameras[:5], 0)
+
+
+def test_the_probe_views_spread_over_the_scene_and_the_keypoints_needed():
+    assert spread_views(list(range(50)), 5) == [0, 12, 24, 37, 49]
+    assert spread_views([3, 9], 5) == [3, 9]
+    # 500 points from 50 views: at most k * 50 / 2 points, and `auto` asks that 4 times over.
+    assert keypoints_needed(500, 50) == 80
+    assert keypoints_needed(500, 10) == 400
 
 
 def test_view_pairs_skip_cameras_facing_away_however_near():
@@ -222,25 +237,23 @@ def test_dtu_triangulated_points_project_inside_the_object_masks(dtu_triangulate
 
 # --- ABC 00000006: grey CAD renders with few features ------------------------------------------
 
-def test_abc_auto_triangulates_on_edges_or_falls_back_with_a_reason(tmp_path):
+def test_abc_auto_skips_triangulation_on_renders_with_too_few_keypoints(tmp_path):
     scene = load_scene(shared("abc_nef/00000006"))
     min_points = 500
     result = initialize(scene, InitSettings(count=2500, side=None), workdir=tmp_path / "colmap",
                         detector="pidinet", min_points=min_points, views=list(range(0, 50, 5)))
     report = result.report
     attempt = report["attempts"][-1]
-    assert attempt["method"] == "triangulated"
-    # Measured: the renders give 10 to 37 SIFT keypoints per view and no verified matches, so
-    # nothing is triangulated and the cube is used.
-    if result.method == "uniform":
-        assert attempt["points"] < min_points
-        assert f"fewer than {min_points}" in report["reason"]
-        assert len(result) == 2500
-    else:
-        assert result.method == "triangulated" and len(result) >= min_points
-        assert report["edge_filter"]["detector"] == "pidinet"
-        support = edge_support(scene, result.positions, list(range(0, 50, 5)), "pidinet", 0.3)
-        assert np.all(support >= 2)
+    # Measured: the renders give 10 to 37 SIFT keypoints per view (18.6 on average over five),
+    # where 10 views need 400 for 500 points: the cube is used without matching every view.
+    assert result.method == "uniform" and len(result) == 2500
+    assert attempt["method"] == "triangulated" and attempt["skipped"]
+    assert 0 < attempt["keypoints_per_view"] < keypoints_needed(min_points, 10) == 400
+    assert f"that {min_points} triangulated points need" in report["reason"]
+    # Forced, the triangulation runs on every view and finds nothing.
+    with pytest.raises(InputError, match="triangulation found no points"):
+        initialize(scene, InitSettings(method="triangulate"), workdir=tmp_path / "forced",
+                   detector="pidinet", views=list(range(0, 50, 5)))
     lo, hi = scene.bounds
     assert np.all((result.positions >= lo - 1e-9) & (result.positions <= hi + 1e-9))
 

@@ -160,6 +160,49 @@ def _write_pairs(path: Path, names: list[str], pairs: list[tuple[int, int]]) -> 
     path.write_text("".join(f"{names[i]} {names[j]}\n" for i, j in pairs), encoding="utf-8")
 
 
+def sift_size(scene: Scene, views: list[int], max_image_size: int | None) -> int:
+    """The longest image side SIFT sees: `max_image_size`, or for None the views' resolution as
+    loaded (the training resolution: features finer than its pixels fit nothing), at most
+    MAX_SIFT_SIZE."""
+    if max_image_size is not None:
+        return int(max_image_size)
+    return min(MAX_SIFT_SIZE, max(max(scene.camera(v).width, scene.camera(v).height) for v in views))
+
+
+def _extract_features(scene: Scene, views: list[int], workdir: Path,
+                      max_image_size: int) -> dict[str, Camera]:
+    """SIFT features of `views` into workdir/database.db (the folder's COLMAP files replaced)
+    -> {image name: its camera} in the order of `views`."""
+    import pycolmap
+
+    for stale in ("images", "sparse", "database.db", "pairs.txt"):
+        target = workdir / stale
+        if target.is_dir() and not target.is_symlink():
+            shutil.rmtree(target)
+        elif target.exists() or target.is_symlink():
+            target.unlink()
+    cameras = _prepare_images(scene, views, workdir / "images")
+    extraction = pycolmap.FeatureExtractionOptions()
+    extraction.max_image_size = int(max_image_size)
+    with colmap_log_level(2):
+        pycolmap.extract_features(workdir / "database.db", workdir / "images", image_names=list(cameras),
+                                  camera_mode=pycolmap.CameraMode.PER_IMAGE,
+                                  extraction_options=extraction, device=pycolmap.Device.cpu)
+    return cameras
+
+
+def keypoints_per_view(scene: Scene, views: list[int], workdir: Path,
+                       max_image_size: int | None = None) -> float:
+    """Mean number of SIFT keypoints of `views`, found as triangulation finds them (in
+    `workdir`, whose COLMAP files are replaced)."""
+    import pycolmap
+
+    workdir = Path(workdir)
+    _extract_features(scene, views, workdir, sift_size(scene, views, max_image_size))
+    with pycolmap.Database.open(workdir / "database.db") as database:
+        return database.num_keypoints() / max(1, database.num_images())
+
+
 def triangulate_known_poses(scene: Scene, workdir: Path, detector: str | None = None,
                             max_image_size: int | None = None, min_edge_views: int = 2,
                             edge_threshold: float = InitSettings.edge_threshold,
@@ -193,26 +236,12 @@ def triangulate_known_poses(scene: Scene, workdir: Path, detector: str | None = 
         raise ValueError(f"view indices must be in [0, {len(scene)}), got {views}")
     started = time.perf_counter()
     workdir = Path(workdir)
-    if max_image_size is None:
-        max_image_size = min(MAX_SIFT_SIZE, max(max(scene.camera(v).width, scene.camera(v).height)
-                                                for v in views))
-    for stale in ("images", "sparse", "database.db", "pairs.txt"):
-        target = workdir / stale
-        if target.is_dir() and not target.is_symlink():
-            shutil.rmtree(target)
-        elif target.exists() or target.is_symlink():
-            target.unlink()
+    max_image_size = sift_size(scene, views, max_image_size)
     image_dir, database_path, model_dir = workdir / "images", workdir / "database.db", workdir / "sparse"
-    cameras = _prepare_images(scene, views, image_dir)
+    cameras = _extract_features(scene, views, workdir, max_image_size)
     pairs = nearest_view_pairs([scene.camera(v) for v in views], match_neighbours)
     _write_pairs(workdir / "pairs.txt", list(cameras), pairs)
-
-    extraction = pycolmap.FeatureExtractionOptions()
-    extraction.max_image_size = int(max_image_size)
     with colmap_log_level(2):  # COLMAP's progress and warnings are summarised in `report`
-        pycolmap.extract_features(database_path, image_dir, image_names=list(cameras),
-                                  camera_mode=pycolmap.CameraMode.PER_IMAGE,
-                                  extraction_options=extraction, device=pycolmap.Device.cpu)
         reconstruction = _known_reconstruction(database_path, cameras, image_dir)
         pycolmap.match_image_pairs(database_path,
                                    pairing_options=pycolmap.ImportedPairingOptions(
