@@ -167,16 +167,33 @@ def test_view_pairs_are_each_views_nearest_cameras_facing_its_way():
     assert len(pairs) <= 40 * 6 and len(pairs) < 40 * 39 // 2
     # Every pair faces the same way: on an orbit, the nearest centres are the nearest directions.
     assert all(cameras[i].forward @ cameras[j].forward > 0 for i, j in pairs)
-    assert nearest_view_pairs(cameras, 0) == [(i, j) for i in range(40) for j in range(i + 1, 40)]
-    assert nearest_view_pairs(cameras[:5], 10) == nearest_view_pairs(cameras[:5], 0)
+    # As many neighbours as other views: every pair facing each other.
+    assert nearest_view_pairs(cameras[:5], 10) == [(i, j) for i in range(5) for j in range(i + 1, 5)
+                                                   if cameras[i].forward @ cameras[j].forward > 0]
 
 
-def test_the_probe_views_spread_over_the_scene_and_the_keypoints_needed():
+def test_the_probe_views_spread_over_the_scene_and_the_keypoints_needed(box_scene):
     assert spread_views(list(range(50)), 5) == [0, 12, 24, 37, 49]
     assert spread_views([3, 9], 5) == [3, 9]
+    assert spread_views([3, 9], 1) == [3] and spread_views([3, 9], 0) == []
+    with pytest.raises(ValueError, match="view indices"):  # checked before the probe reads them
+        initialize(box_scene, views=[0, 1, len(box_scene)])
     # 500 points from 50 views: at most k * 50 / 2 points, and `auto` asks that 4 times over.
     assert keypoints_needed(500, 50) == 80
     assert keypoints_needed(500, 10) == 400
+
+
+def test_view_names_with_spaces_reach_colmaps_match_list(box_scene, tmp_path):
+    # COLMAP splits the match list's lines at spaces: the names it gets are the views' indices.
+    scene = dataclasses.replace(box_scene, views=[dataclasses.replace(v, name=f"my view {i}")
+                                                  for i, v in enumerate(box_scene.views)])
+    with pytest.raises(InputError, match="triangulation found no points"):
+        initialize(scene, InitSettings(method="triangulate", match_neighbours=1), workdir=tmp_path,
+                   views=[0, 1, 2, 3, 4])
+    lines = (tmp_path / "pairs.txt").read_text().splitlines()
+    images = {path.name for path in (tmp_path / "images").iterdir()}
+    assert 2 <= len(lines) <= 5
+    assert all(len(line.split(" ")) == 2 and set(line.split(" ")) <= images for line in lines)
 
 
 def test_view_pairs_skip_cameras_facing_away_however_near():
@@ -206,6 +223,7 @@ def test_dtu_triangulation_with_known_cameras(dtu_triangulated):
     assert len(result) >= 500
     assert result.report["triangulated"] == result.report["kept"] == len(result)
     assert result.report["edge_filter"] == "none"
+    assert "skipped" not in result.report["attempts"][-1]  # the probe found keypoints enough
     assert result.report["matched_pairs"] == 45  # 10 views: each with its 10 nearest is every pair
     assert result.report["max_image_size"] == 800  # SIFT at the loaded (training) resolution
     assert result.report["mean_reprojection_error_px"] < 2.0

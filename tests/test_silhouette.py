@@ -69,6 +69,15 @@ def test_an_outline_made_within_reach_equals_the_whole_views_where_it_is_read(re
     assert np.array_equal(pulls[0].apply(mask, nearest=True), pulls[1].apply(mask, nearest=True))
     profiles = [measure_silhouette_profile([edge_map], [outline]) for outline in (whole, boxed)]
     assert profiles[0].to_dict() == profiles[1].to_dict()
+    with pytest.raises(ValueError, match="made within"):  # a pull reaching past what was made
+        OutlinePull.towards(boxed, 1.3, reach * 4)
+    # Faint noise over the whole view (a JPEG mask): the box stays the object's, and exact.
+    noisy = np.where(coverage > 0, coverage, np.float32(0.01))
+    noisy_whole = Outline.from_coverage(noisy)
+    read = np.abs(noisy_whole.distance) <= distances_read(reach)
+    noisy_boxed = Outline.from_coverage(noisy, distances_read(reach))
+    assert np.array_equal(noisy_boxed.distance[read], noisy_whole.distance[read])
+    assert np.all(noisy_boxed.distance[:, :150] == distances_read(reach) + 1)  # off the box: not made
 
 
 @pytest.mark.parametrize("drawn_at", [-0.6, 0.0, 1.2])
@@ -148,7 +157,7 @@ def test_scene_without_masks_is_refused_and_auto_leaves_it_alone(builtin_scene_d
     assert not corrects_silhouettes(tiny_config(), scene)
     assert corrects_silhouettes(tiny_config(silhouette_correction="measured"), scene)
     with pytest.raises(InputError, match="needs object masks"):
-        scene_outlines(scene)
+        scene_outlines(scene, 3.0)
 
 
 def dataclass_without_alpha(view, folder):

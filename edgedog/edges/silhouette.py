@@ -34,13 +34,15 @@ class Outline:
     """An object mask's outline in one view, at the resolution of its coverage.
 
     Attributes:
-        distance: (H, W) float32 signed distance in px to the 0.5-coverage contour, > 0 outside
-            (made `within` px: exact within that distance of the contour, at least it beyond).
+        distance: (H, W) float32 signed distance in px to the 0.5-coverage contour, > 0 outside.
         normal: (H, W, 2) float32 unit outward normal (x, y), the distance's gradient.
+        within: both hold only this far from the contour (px; beyond it the distance is at least
+            `within`, the normal meaningless); None: everywhere.
     """
 
     distance: np.ndarray
     normal: np.ndarray
+    within: float | None = None
 
     @classmethod
     def from_coverage(cls, coverage: np.ndarray, within: float | None = None) -> Outline:
@@ -62,7 +64,7 @@ class Outline:
         gx = cv2.Sobel(distance, cv2.CV_32F, 1, 0, ksize=3)
         gy = cv2.Sobel(distance, cv2.CV_32F, 0, 1, ksize=3)
         norm = np.maximum(np.hypot(gx, gy), 1e-6)
-        return cls(distance, np.stack([gx / norm, gy / norm], axis=-1))
+        return cls(distance, np.stack([gx / norm, gy / norm], axis=-1), within)
 
 
 def _reach_box(coverage: np.ndarray, within: float | None) -> tuple[int, int, int, int]:
@@ -70,7 +72,10 @@ def _reach_box(coverage: np.ndarray, within: float | None) -> tuple[int, int, in
     plus what the box's own edges disturb (2 px of the upsampling's support, 1 px of the
     gradient's). The whole view for None or a coverage without any object pixel."""
     height, width = coverage.shape
-    rows, cols = np.nonzero(coverage.any(axis=1))[0], np.nonzero(coverage.any(axis=0))[0]
+    # Only pixels over half covered make upsampled pixels over half: faint noise in a mask
+    # does not widen the box.
+    covered = coverage > 0.5
+    rows, cols = np.nonzero(covered.any(axis=1))[0], np.nonzero(covered.any(axis=0))[0]
     if within is None or len(rows) == 0:
         return 0, height, 0, width
     pad = int(np.ceil(within)) + 3
@@ -164,6 +169,9 @@ class OutlinePull:
     def towards(cls, outline: Outline, offset_px: float, reach_px: float) -> OutlinePull:
         """The pull onto `outline` (at the map's resolution) of bands drawn `offset_px` outside
         it (< 0: inside), applied in full within `reach_px` of it."""
+        if outline.within is not None and distances_read(reach_px) > outline.within:
+            raise ValueError(f"a pull of reach {reach_px} px reads the outline {distances_read(reach_px)} px "
+                             f"away, but it was made within {outline.within} px")
         height, width = outline.distance.shape
         weight = np.clip(2.0 - np.abs(outline.distance) / reach_px, 0.0, 1.0) * offset_px
         xs, ys = np.meshgrid(np.arange(width, dtype=np.float32), np.arange(height, dtype=np.float32))

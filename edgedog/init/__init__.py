@@ -16,7 +16,7 @@ import numpy as np
 from edgedog.errors import InputError
 from edgedog.init.points import InitialPoints, nearest_neighbour_scales
 from edgedog.init.settings import InitMethod, InitSettings
-from edgedog.init.triangulate import keep_on_edges, keypoints_per_view, triangulate_known_poses
+from edgedog.init.triangulate import checked_views, keep_on_edges, keypoints_per_view, triangulate_known_poses
 from edgedog.init.uniform import uniform_init
 from edgedog.scenes.common import look_at_point
 from edgedog.scenes.scene import Scene
@@ -69,6 +69,8 @@ def spread_views(views: list[int], count: int) -> list[int]:
     """Up to `count` of `views`, evenly spread over the list (its ends included)."""
     if len(views) <= count:
         return list(views)
+    if count <= 1:
+        return list(views[:count])
     return [views[round(i * (len(views) - 1) / (count - 1))] for i in range(count)]
 
 
@@ -137,7 +139,7 @@ def initialize(scene: Scene, settings: InitSettings = DEFAULTS, workdir: Path | 
         if method == "triangulate":
             raise InputError(scene.root, f"triangulation needs at least 2 views; the scene has {count}")
         return uniform(f"triangulation needs at least 2 views, and the scene has {count}", attempts)
-    all_views = list(range(len(scene))) if views is None else [int(v) for v in views]
+    all_views = checked_views(scene, views)
     with tempfile.TemporaryDirectory(prefix="edgedog-init-") as temporary:
         folder = Path(workdir) if workdir is not None else Path(temporary)
         folder.mkdir(parents=True, exist_ok=True)
@@ -173,9 +175,9 @@ def initialize(scene: Scene, settings: InitSettings = DEFAULTS, workdir: Path | 
 __all__ = [
     "DEFAULTS",
     "INIT_METHODS",
-    "InitSettings",
     "KEYPOINT_MARGIN",
     "PROBE_VIEWS",
+    "InitSettings",
     "InitialPoints",
     "initialize",
     "keypoints_needed",

@@ -51,7 +51,8 @@ class InitSettings(Settings):
     match_neighbours: Annotated[int, Range(0, MAX_MATCH_NEIGHBOURS)] = 10
     """Triangulation matches each view with this many others, the nearest camera centres among
     the views facing its way (optical axes within 90 degrees), instead of every pair: matching
-    grows with views x neighbours, not views squared. 0: every pair."""
+    grows with views x neighbours, not views squared. 0, or at least the other views: every
+    pair, facing away or not (COLMAP's exhaustive matching)."""
     opacity: Annotated[float, Range(0, 1, open_low=True, open_high=True)] = 0.08
     """Initial opacity of every primitive."""
     k: tuple[Logit, Logit] = (0.0, 0.0)

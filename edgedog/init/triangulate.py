@@ -24,7 +24,6 @@ from edgedog.scenes.colmap import COLMAP_SUFFIXES, colmap_log_level
 from edgedog.scenes.images import read_raw
 from edgedog.scenes.scene import Scene
 
-# Files COLMAP reads directly when they are 8-bit grey or RGB; anything else is converted.
 # Scale clip range of the triangulated points, as fractions of the bounds' largest extent.
 SCALE_RANGE = (0.0005, 0.02)
 MAX_SIFT_SIZE = 1600
@@ -75,7 +74,8 @@ def _prepare_images(scene: Scene, views: list[int], image_dir: Path) -> dict[str
     names: dict[str, Camera] = {}
     for index in views:
         view = scene.views[index]
-        stem = f"{index:05d}_{view.name.replace('/', '_')}"  # one folder: COLMAP rig names hold a '/'
+        # The view's index only: COLMAP's match list splits at spaces, and rig names at '/'.
+        stem = f"{index:05d}"
         if _needs_conversion(view.image_path, view.camera):
             name = f"{stem}.png"
             rgb = np.clip(np.rint(scene.load_image(index) * 255.0), 0, 255).astype(np.uint8)
@@ -129,28 +129,33 @@ def _known_reconstruction(database_path: Path, cameras: dict[str, Camera], image
     return reconstruction
 
 
+def checked_views(scene: Scene, views: list[int] | None) -> list[int]:
+    """`views` (default all) as ints; ValueError for an index outside the scene."""
+    views = list(range(len(scene))) if views is None else [int(v) for v in views]
+    if any(not 0 <= v < len(scene) for v in views):
+        raise ValueError(f"view indices must be in [0, {len(scene)}), got {views}")
+    return views
+
+
 def nearest_view_pairs(cameras: list[Camera], neighbours: int) -> list[tuple[int, int]]:
     """The view pairs worth matching: each view with its `neighbours` nearest camera centres
     among the views facing its way (optical axes within 90 degrees), both ways merged.
 
     Args:
         cameras: the views' cameras.
-        neighbours: views paired with each view; 0 (or >= len - 1): every pair.
+        neighbours: views paired with each view (>= 1).
     Returns:
-        Sorted pairs (i, j), i < j, of indices into `cameras`.
+        Sorted pairs (i, j), i < j, of indices into `cameras`: at most len(cameras) x neighbours.
     """
-    count = len(cameras)
-    if neighbours == 0 or neighbours >= count - 1:
-        return [(i, j) for i in range(count) for j in range(i + 1, count)]
     centres = np.stack([c.center for c in cameras])
     axes = np.stack([c.forward for c in cameras])
-    distance = np.linalg.norm(centres[:, None] - centres[None], axis=-1)
-    distance[axes @ axes.T <= 0] = np.inf  # facing away: they see other sides of the scene
-    np.fill_diagonal(distance, np.inf)
     pairs = set()
-    for i, row in enumerate(distance):
-        for j in np.argsort(row, kind="stable")[:neighbours]:
-            if np.isfinite(row[j]):
+    for i in range(len(cameras)):  # a row at a time: memory linear in the views
+        distance = np.linalg.norm(centres - centres[i], axis=1)
+        distance[axes @ axes[i] <= 0] = np.inf  # facing away: they see other sides of the scene
+        distance[i] = np.inf
+        for j in np.argsort(distance, kind="stable")[:neighbours]:
+            if np.isfinite(distance[j]):
                 pairs.add((min(i, int(j)), max(i, int(j))))
     return sorted(pairs)
 
@@ -222,31 +227,35 @@ def triangulate_known_poses(scene: Scene, workdir: Path, detector: str | None = 
         min_edge_views: a point is kept when it projects onto an edge in this many views.
         edge_threshold: edge-map value that counts as an edge.
         views: indices of the views to use (default all).
-        match_neighbours: views each view is matched with (`nearest_view_pairs`); 0: all.
+        match_neighbours: views each view is matched with (`nearest_view_pairs`); 0, or as many
+            as there are other views: every pair (COLMAP's exhaustive matching).
     Returns:
         InitialPoints with method "triangulated"; it may hold few or no points (textureless
         renders): `report` says how many were triangulated and kept.
     """
     import pycolmap
 
-    views = list(range(len(scene))) if views is None else [int(v) for v in views]
+    views = checked_views(scene, views)
     if len(views) < 2:
         raise ValueError(f"triangulation needs at least 2 views, got {len(views)}")
-    if any(not 0 <= v < len(scene) for v in views):
-        raise ValueError(f"view indices must be in [0, {len(scene)}), got {views}")
     started = time.perf_counter()
     workdir = Path(workdir)
     max_image_size = sift_size(scene, views, max_image_size)
     image_dir, database_path, model_dir = workdir / "images", workdir / "database.db", workdir / "sparse"
     cameras = _extract_features(scene, views, workdir, max_image_size)
-    pairs = nearest_view_pairs([scene.camera(v) for v in views], match_neighbours)
-    _write_pairs(workdir / "pairs.txt", list(cameras), pairs)
+    every_pair = not 0 < match_neighbours < len(views) - 1
+    if not every_pair:
+        pairs = nearest_view_pairs([scene.camera(v) for v in views], match_neighbours)
+        _write_pairs(workdir / "pairs.txt", list(cameras), pairs)
     with colmap_log_level(2):  # COLMAP's progress and warnings are summarised in `report`
         reconstruction = _known_reconstruction(database_path, cameras, image_dir)
-        pycolmap.match_image_pairs(database_path,
-                                   pairing_options=pycolmap.ImportedPairingOptions(
-                                       match_list_path=str(workdir / "pairs.txt")),
-                                   device=pycolmap.Device.cpu)
+        if every_pair:
+            pycolmap.match_exhaustive(database_path, device=pycolmap.Device.cpu)
+        else:
+            pycolmap.match_image_pairs(database_path,
+                                       pairing_options=pycolmap.ImportedPairingOptions(
+                                           match_list_path=str(workdir / "pairs.txt")),
+                                       device=pycolmap.Device.cpu)
         model_dir.mkdir(parents=True, exist_ok=True)
         reconstruction = pycolmap.triangulate_points(reconstruction, database_path, image_dir,
                                                      model_dir, refine_intrinsics=False)
@@ -257,7 +266,7 @@ def triangulate_known_poses(scene: Scene, workdir: Path, detector: str | None = 
     report: dict[str, Any] = {
         "views": len(views),
         "max_image_size": int(max_image_size),
-        "matched_pairs": len(pairs),
+        "matched_pairs": len(views) * (len(views) - 1) // 2 if every_pair else len(pairs),
         "triangulated": int(len(positions)),
         "mean_track_length": float(track.mean()) if len(track) else 0.0,
         "mean_reprojection_error_px": float(reconstruction.compute_mean_reprojection_error())

@@ -30,7 +30,7 @@ class ViewSet:
         targets: (H, W) float32 maps to fit.
         edge_masks: (H, W) bool edge pixels (the sampled loss's edges, the projection cull).
         edge_pixels: (E,) int32 sorted flat indices of each mask's edge pixels (the sampled loss
-            draws around them at every fifth step; found once here).
+            draws around them at its sampled steps; found once here).
     """
 
     factor: int

@@ -56,12 +56,12 @@ def corrects_silhouettes(config: TrainConfig, scene: Scene) -> bool:
     return config.maps.silhouette_correction == "measured"
 
 
-def scene_outlines(scene: Scene, reach_px: float | None = None) -> tuple[list[Outline | None], list[str]]:
+def scene_outlines(scene: Scene, reach_px: float) -> tuple[list[Outline | None], list[str]]:
     """The object's outline in every view, from the scene's masks; None for a view whose mask or
     image cannot be read, named in the second list (its map then stays as it is).
 
-    `reach_px`: the pull's `maps.silhouette_reach`; the distances are then made only as far
-    from the outline as the correction reads them (None: everywhere).
+    `reach_px`: the pull's `maps.silhouette_reach`; the distances are made only as far from
+    the outline as the correction reads them.
 
     Raises:
         InputError when the scene has no masks (no mask files and no alpha).
@@ -78,8 +78,7 @@ def scene_outlines(scene: Scene, reach_px: float | None = None) -> tuple[list[Ou
         if coverage is None:
             raise InputError(scene.root, "silhouette_correction=measured needs object masks "
                                          "(mask files or RGBA images), and this scene has none")
-        outlines.append(Outline.from_coverage(
-            coverage, None if reach_px is None else distances_read(reach_px)))
+        outlines.append(Outline.from_coverage(coverage, distances_read(reach_px)))
     return outlines, unreadable
 
 
