@@ -154,7 +154,7 @@ def initialize(scene: Scene, settings: InitSettings = DEFAULTS, workdir: Path | 
                                f"(mean of {len(probe)}), fewer than the {needed:.0f} that "
                                f"{min_points} triangulated points need: too few image features", attempts)
         result = triangulate_known_poses(scene, folder, detector=detector, edge_threshold=threshold,
-                                         max_image_size=max_image_size, views=views,
+                                         max_image_size=max_image_size, views=all_views,
                                          match_neighbours=settings.match_neighbours)
     attempts.append({"method": "triangulated", "points": len(result),
                      "triangulated": result.report["triangulated"]})
