@@ -260,7 +260,7 @@ def test_extract_run_counts_the_silhouette_filter_after_the_outliers(tmp_path):
     beside = points + [10.3 * 0.06, 0.0, 0.0]  # an edge-like tube 6 px outside the mask
     write_primitives(tmp_path / "primitives.ply", np.vstack([points, beside]),
                      np.vstack([tangents, tangents]), 0.6)
-    config = ExtractConfig(filter_projection=False)
+    config = ExtractConfig(filter_projection=False, filter_outliers="on")
     result = extract_run(tmp_path, config, _MaskedScene(), "exact")
     assert list(result.counts)[:4] == ["primitives", "after_opacity", "after_outliers", "after_silhouette"]
     kept = result.points.points
@@ -268,6 +268,38 @@ def test_extract_run_counts_the_silhouette_filter_after_the_outliers(tmp_path):
     assert result.curves.num_curves == 1
     off = extract_run(tmp_path, dataclasses.replace(config, filter_silhouette=False), _MaskedScene(), "exact")
     assert "after_silhouette" not in off.counts and off.curves.num_curves == 2
+
+
+def _dense_and_sparse_edges() -> tuple[np.ndarray, np.ndarray]:
+    """A dense edge (200 points) at x = 0 and a sparse one (12 points 0.03 apart) at x = 0.2,
+    both along z and inside `_MaskedScene`'s mask; (212, 3) points and their directions."""
+    dense, tangents = segment([0.0, 0.0, -0.2], [0.0, 0.0, 0.2], 0.002)
+    sparse = np.stack([np.full(12, 0.2), np.zeros(12), np.linspace(-0.165, 0.165, 12)], axis=1)
+    return np.vstack([dense, sparse]), np.vstack([tangents, np.tile([0.0, 0.0, 1.0], (12, 1))])
+
+
+@pytest.mark.parametrize("scene, setting, sparse_kept, outlier_count", [
+    (_MaskedScene(), "auto", True, False),  # the silhouette filter runs: the outlier filter does not
+    (_MaskedScene(), "on", False, True),
+    (_TwoViewScene(), "auto", False, True),  # no masks: the outlier filter runs instead
+    (_TwoViewScene(), "off", True, False),
+])
+def test_outlier_filter_runs_where_the_silhouette_filter_does_not(tmp_path, scene, setting, sparse_kept,
+                                                                   outlier_count):
+    points, directions = _dense_and_sparse_edges()
+    write_primitives(tmp_path / "primitives.ply", points, directions, 0.6)
+    config = ExtractConfig(filter_projection=False, filter_outliers=setting)
+    result = extract_run(tmp_path, config, scene, scene.detector)
+    kept_sparse = np.isclose(result.points.points[:, 0], 0.2).sum()
+    assert kept_sparse == (12 if sparse_kept else 0)
+    assert np.isclose(result.points.points[:, 0], 0.0).sum() == 200  # the dense edge always stays
+    assert ("after_outliers" in result.counts) == outlier_count
+    assert ("after_silhouette" in result.counts) == isinstance(scene, _MaskedScene)
+
+
+def test_outlier_filter_setting_is_a_choice():
+    with pytest.raises(ConfigError, match="filter_outliers must be one of auto, on, off"):
+        ExtractConfig(filter_outliers=False)
 
 
 # --- runs ---------------------------------------------------------------------------------------
@@ -331,7 +363,7 @@ def test_extract_run_filters_fits_and_writes_its_outputs(tmp_path):
     write_primitives(tmp_path / "primitives.ply", cloud, directions, opacity,
                      uncertainty=np.arange(len(cloud), dtype=float))
     scene = _TwoViewScene()  # the segment lies on view 0's edge column; the stray points do not
-    config = ExtractConfig(filter_outliers=False)
+    config = ExtractConfig(filter_outliers="off")
     result = extract_run(tmp_path, config, scene, scene.detector)
     c = result.counts
     assert c["primitives"] == len(cloud) and c["after_opacity"] == len(points) + len(stray)
@@ -383,7 +415,8 @@ def test_cli_extract_on_ground_truth_primitives(abc_nef_scene_dir, tmp_path):
     result = subprocess.run([sys.executable, "-m", "edgedog", "extract", tmp_path,
                              "--set", "filter_projection=false"], capture_output=True, text=True)
     assert result.returncode == 0, result.stderr
-    assert "after projection" not in result.stdout and "after outliers" in result.stdout
+    assert "after projection" not in result.stdout
+    assert "after silhouette" in result.stdout and "after outliers" not in result.stdout  # 'auto', masks
     report = json.loads((tmp_path / "extract.json").read_text())
     assert 10 <= report["counts"]["chains"] <= 60
     assert report["metrics"]["curves"]["fscore_10mm"] > 90

@@ -8,8 +8,12 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
+from typing import Literal, get_args
 
 from edgedog.errors import ConfigError
+
+OutlierFilter = Literal["auto", "on", "off"]
+"""When the statistical outlier filter runs: 'auto' where the silhouette filter does not."""
 
 
 @dataclass(frozen=True)
@@ -34,14 +38,19 @@ class ExtractConfig:
     mask in every view; skipped on scenes without masks. Edge maps also draw the occluding
     contours of curved surfaces, which move with the view and are not edges of the object;
     training places primitives for them around the object, outside it in some views."""
-    filter_outliers: bool = True
-    outlier_neighbours: int = 8
-    outlier_std: float = 2.0
+    filter_outliers: OutlierFilter = "auto"
     """Statistical outliers: drop points whose mean distance to their `outlier_neighbours` nearest
     points exceeds the mean of that value over all points by `outlier_std` standard deviations.
-    EdgeGaussians use 25 neighbours; an edge held by fewer primitives than that (a sparse circle)
-    then reaches across to other edges and is dropped whole, so 8 is the default (on four ABC
-    runs: Comp 18.0 -> 11.3, 12.0 -> 6.8, 9.8 -> 7.3, 9.4 -> 8.1 mm; docs/BENCHMARKS.md)."""
+    'auto' runs it only where the silhouette filter does not (a scene without masks, or
+    `filter_silhouette` off). The statistics are relative to the points' own density, so an edge
+    that training holds with few primitives (a sparse circle) is taken for outliers; where the
+    masks are there, the silhouette filter removes the floaters and this filter mostly real
+    edges (on 12 ABC runs: 126 of the 128 points it dropped from a DexiNed run lay within 10 mm
+    of the truth; F10 +2.7 there, Comp 6.7 -> 2.9 mm; docs/notes/2026-11-25-outlier-filter.md)."""
+    outlier_neighbours: int = 8
+    """EdgeGaussians use 25 neighbours; an edge held by fewer primitives than that reaches across
+    to other edges and is dropped whole, so 8 (docs/BENCHMARKS.md)."""
+    outlier_std: float = 2.0
 
     # --- directions
     min_elongation: float = 1.5
@@ -101,6 +110,9 @@ class ExtractConfig:
         for name in ("link_angle", "corner_angle"):
             if not 0 < getattr(self, name) < 90:
                 raise ConfigError(f"{name} must be in (0, 90) degrees, got {getattr(self, name)}")
+        if self.filter_outliers not in get_args(OutlierFilter):
+            raise ConfigError(f"filter_outliers must be one of {', '.join(get_args(OutlierFilter))}, "
+                              f"got {self.filter_outliers!r}")
         if not self.max_outside_pixels >= 0:
             raise ConfigError(f"max_outside_pixels must be >= 0, got {self.max_outside_pixels}")
         if not 0 <= self.max_outlier_share < 1:

@@ -114,10 +114,11 @@ def run_scene(run_dir: Path, maps: bool = True) -> tuple[Scene, str]:
 def filter_primitives(primitives: EdgePrimitives, config: ExtractConfig, scene: Scene | None,
                       detector: str | None, counts: dict[str, int]) -> EdgePrimitives:
     """Apply the switched-on filters in order (opacity, projection, outliers, silhouette),
-    recording in `counts` how many primitives are left after each (the silhouette filter is
-    skipped, and not counted, on a scene without masks). The silhouette filter comes last:
-    the outlier statistics are relative to the spread of all points, and without the points it
-    removes they drop sparse real edges (half of 00000006's top hole circle)."""
+    recording in `counts` how many primitives are left after each (a filter that does not run is
+    not counted: the silhouette filter on a scene without masks, the outlier filter on 'auto'
+    where the silhouette filter runs). The silhouette filter comes last: the outlier statistics
+    are relative to the spread of all points, and without the points it removes they drop
+    sparse real edges (half of 00000006's top hole circle)."""
     counts["primitives"] = len(primitives)
     if config.filter_opacity:
         primitives = primitives.subset(filtering.opacity_mask(primitives.opacity, config.min_opacity))
@@ -126,15 +127,17 @@ def filter_primitives(primitives: EdgePrimitives, config: ExtractConfig, scene: 
         keep = filtering.projection_mask(primitives.points, scene, detector, config.min_edge_value)
         primitives = primitives.subset(keep)
         counts["after_projection"] = len(primitives)
-    if config.filter_outliers:
+    # Each point's silhouette test is its own: taken now, it is the same after the outlier filter.
+    inside = (filtering.silhouette_mask(primitives.points, scene, config.max_outside_pixels)
+              if config.filter_silhouette else None)
+    if config.filter_outliers == "on" or (config.filter_outliers == "auto" and inside is None):
         keep = filtering.outlier_mask(primitives.points, config.outlier_neighbours, config.outlier_std)
         primitives = primitives.subset(keep)
+        inside = None if inside is None else inside[keep]
         counts["after_outliers"] = len(primitives)
-    if config.filter_silhouette:
-        keep = filtering.silhouette_mask(primitives.points, scene, config.max_outside_pixels)
-        if keep is not None:
-            primitives = primitives.subset(keep)
-            counts["after_silhouette"] = len(primitives)
+    if inside is not None:
+        primitives = primitives.subset(inside)
+        counts["after_silhouette"] = len(primitives)
     return primitives
 
 
