@@ -264,6 +264,9 @@ def test_with_epochs_stretches_the_whole_schedule():
     assert half.run.checkpoint_every == 25 and half.schedule.lr_means_decay_epochs == (5, 10, 15, 20, 25)
     assert half.strategy.duplicate_epochs[0] == 20 and half.strategy.cull_opacity_epochs == (62, 155)
     assert (half.loss.sampled_every, half.run.snapshot_every) == (5, 25)  # periods in steps stay
+    assert half.schedule.fine_from_epoch == 0  # from the start stays from the start
+    early = with_epochs(with_overrides(full, ["loss.sampled_from_epoch=0", "loss.ratio_from_epoch=1"]), 100)
+    assert (early.loss.sampled_from_epoch, early.loss.ratio_from_epoch) == (0, 1)
     assert with_epochs(full, 400) == full
     with pytest.raises(ConfigError):
         with_epochs(full, 0)

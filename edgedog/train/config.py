@@ -365,9 +365,10 @@ def for_detector(config: TrainConfig, detector: str) -> TrainConfig:
 
 def _scale_epochs(config: TrainConfig, factor: float) -> dict[str, Any]:
     """Every setting marked `IN_EPOCHS` (or a list of them) multiplied by `factor`, by dotted
-    name: a shorter run keeps the same shape."""
+    name: a shorter run keeps the same shape. Epoch 0 (from the start) stays 0; any other epoch
+    stays at least 1, so an event never moves to the start."""
     def scale(e: int) -> int:
-        return max(1, round(e * factor))
+        return 0 if e == 0 else max(1, round(e * factor))
 
     changes = {}
     for path, kind in setting_paths(TrainConfig).items():
