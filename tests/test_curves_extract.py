@@ -15,7 +15,7 @@ from scipy.spatial import cKDTree
 from edgedog.curve_files import EdgeCurves, read_edges
 from edgedog.curves import filtering
 from edgedog.curves.config import ExtractConfig
-from edgedog.curves.extract import extract_curves, extract_run
+from edgedog.curves.extract import extract_curves, extract_primitives, extract_run
 from edgedog.errors import ConfigError, InputError
 from edgedog.groundtruth import ground_truth_for
 from edgedog.primitives import EdgePrimitives, read_ply
@@ -283,18 +283,30 @@ def _dense_and_sparse_edges() -> tuple[np.ndarray, np.ndarray]:
     (_MaskedScene(), "on", False, True),
     (_TwoViewScene(), "auto", False, True),  # no masks: the outlier filter runs instead
     (_TwoViewScene(), "off", True, False),
+    (None, "auto", False, True),  # no scene: no silhouette test
 ])
 def test_outlier_filter_runs_where_the_silhouette_filter_does_not(tmp_path, scene, setting, sparse_kept,
                                                                    outlier_count):
     points, directions = _dense_and_sparse_edges()
     write_primitives(tmp_path / "primitives.ply", points, directions, 0.6)
+    primitives = EdgePrimitives.from_arrays(read_ply(tmp_path / "primitives.ply"))
     config = ExtractConfig(filter_projection=False, filter_outliers=setting)
-    result = extract_run(tmp_path, config, scene, scene.detector)
+    result = extract_primitives(primitives, config, scene, None)
     kept_sparse = np.isclose(result.points.points[:, 0], 0.2).sum()
     assert kept_sparse == (12 if sparse_kept else 0)
     assert np.isclose(result.points.points[:, 0], 0.0).sum() == 200  # the dense edge always stays
     assert ("after_outliers" in result.counts) == outlier_count
     assert ("after_silhouette" in result.counts) == isinstance(scene, _MaskedScene)
+
+
+def test_outlier_filter_on_auto_runs_when_the_silhouette_filter_is_switched_off(tmp_path):
+    points, directions = _dense_and_sparse_edges()
+    write_primitives(tmp_path / "primitives.ply", points, directions, 0.6)
+    primitives = EdgePrimitives.from_arrays(read_ply(tmp_path / "primitives.ply"))
+    config = ExtractConfig(filter_projection=False, filter_silhouette=False)
+    result = extract_primitives(primitives, config, _MaskedScene(), None)
+    assert "after_outliers" in result.counts and "after_silhouette" not in result.counts
+    assert not np.isclose(result.points.points[:, 0], 0.2).any()
 
 
 def test_outlier_filter_setting_is_a_choice():

@@ -5,13 +5,17 @@ what ran before them in the process."""
 from __future__ import annotations
 
 import dataclasses
+import json
 import pickle
+import shutil
 from pathlib import Path
 
 import numpy as np
 import pytest
 import torch
 
+from edgedog.curves.config import ExtractConfig, to_dict
+from edgedog.curves.report import REPORT
 from edgedog.errors import InputError
 from edgedog.scenes import load_scene
 from edgedog.train import layered, lifecycle
@@ -78,6 +82,24 @@ def test_plans_of_a_finished_run(finished, small_box_scene):
     assert other.state == REFUSED and "another scene or configuration" in other.reason
     with pytest.raises(InputError, match="another scene or configuration"):
         execute(other)
+
+
+def test_a_report_of_other_extraction_settings_is_extracted_again(finished, small_box_scene, tmp_path):
+    out = tmp_path / "copy"
+    shutil.copytree(finished, out)
+    report = json.loads((out / REPORT).read_text())
+    report["config"]["filter_outliers"] = True  # as written before the setting was a choice
+    (out / REPORT).write_text(json.dumps(report))
+    stale = plan_run(out, small_box_scene, "preview", config(), REUSE)
+    assert stale.state == FINISHED and not stale.extracted
+    primitives = (out / "primitives.ply").read_bytes()
+    result = execute(stale, progress=False)
+    assert result.report["config"] == to_dict(ExtractConfig())
+    assert json.loads((out / REPORT).read_text())["config"] == to_dict(ExtractConfig())
+    assert (out / "primitives.ply").read_bytes() == primitives  # extracted, not trained again
+    assert plan_run(out, small_box_scene, "preview", config(), REUSE).extracted
+    (out / REPORT).write_text("{not json")
+    assert not plan_run(out, small_box_scene, "preview", config(), REUSE).extracted
 
 
 def test_refused_plans_say_why(small_box_scene, tmp_path):

@@ -45,8 +45,9 @@ class ExtractConfig:
     `filter_silhouette` off). The statistics are relative to the points' own density, so an edge
     that training holds with few primitives (a sparse circle) is taken for outliers; where the
     masks are there, the silhouette filter removes the floaters and this filter mostly real
-    edges (on 12 ABC runs: 126 of the 128 points it dropped from a DexiNed run lay within 10 mm
-    of the truth; F10 +2.7 there, Comp 6.7 -> 2.9 mm; docs/notes/2026-11-25-outlier-filter.md)."""
+    edges (126 of the 128 points it dropped from a DexiNed `fast` run of 00004926 lay within 10
+    mm of the truth; on that object's four DexiNed runs F10 +2.7 to +2.8, Comp about 7 -> 3 mm;
+    docs/notes/2026-11-25-outlier-filter.md)."""
     outlier_neighbours: int = 8
     """EdgeGaussians use 25 neighbours; an edge held by fewer primitives than that reaches across
     to other edges and is dropped whole, so 8 (docs/BENCHMARKS.md)."""

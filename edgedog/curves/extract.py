@@ -114,11 +114,11 @@ def run_scene(run_dir: Path, maps: bool = True) -> tuple[Scene, str]:
 def filter_primitives(primitives: EdgePrimitives, config: ExtractConfig, scene: Scene | None,
                       detector: str | None, counts: dict[str, int]) -> EdgePrimitives:
     """Apply the switched-on filters in order (opacity, projection, outliers, silhouette),
-    recording in `counts` how many primitives are left after each (a filter that does not run is
-    not counted: the silhouette filter on a scene without masks, the outlier filter on 'auto'
-    where the silhouette filter runs). The silhouette filter comes last: the outlier statistics
-    are relative to the spread of all points, and without the points it removes they drop
-    sparse real edges (half of 00000006's top hole circle)."""
+    recording in `counts` how many primitives are left after each. A filter that does not run is
+    not counted: the silhouette filter on a scene without masks or without a scene (None), the
+    outlier filter on 'auto' where the silhouette filter runs. The silhouette filter comes last:
+    the outlier statistics are relative to the spread of all points, and without the points it
+    removes they drop sparse real edges (half of 00000006's top hole circle)."""
     counts["primitives"] = len(primitives)
     if config.filter_opacity:
         primitives = primitives.subset(filtering.opacity_mask(primitives.opacity, config.min_opacity))
@@ -129,7 +129,7 @@ def filter_primitives(primitives: EdgePrimitives, config: ExtractConfig, scene: 
         counts["after_projection"] = len(primitives)
     # Each point's silhouette test is its own: taken now, it is the same after the outlier filter.
     inside = (filtering.silhouette_mask(primitives.points, scene, config.max_outside_pixels)
-              if config.filter_silhouette else None)
+              if config.filter_silhouette and scene is not None else None)
     if config.filter_outliers == "on" or (config.filter_outliers == "auto" and inside is None):
         keep = filtering.outlier_mask(primitives.points, config.outlier_neighbours, config.outlier_std)
         primitives = primitives.subset(keep)

@@ -11,12 +11,24 @@ from pathlib import Path
 from edgedog.curve_files import EdgeCurves
 from edgedog.curves.config import ExtractConfig, to_dict
 from edgedog.curves.extract import RunExtraction, extract_run
-from edgedog.files import atomic_write_json
+from edgedog.errors import InputError
+from edgedog.files import atomic_write_json, read_json
 from edgedog.groundtruth import GroundTruthSource, ground_truth_for
 from edgedog.metrics import EdgeMetrics, evaluate
 from edgedog.scenes import Scene
 
 REPORT = "extract.json"
+
+
+def has_current_report(run_dir: Path) -> bool:
+    """Whether the run's extract.json is there and was written with the default extraction
+    settings of this version: a batch or a resumed run extracts again when it was not (missing,
+    unreadable, or written before a default changed), so that reused runs score like new ones."""
+    try:
+        report = read_json(Path(run_dir) / REPORT)
+    except InputError:
+        return False
+    return isinstance(report, dict) and report.get("config") == to_dict(ExtractConfig())
 
 
 def score_extraction(result: RunExtraction, scene: Scene,

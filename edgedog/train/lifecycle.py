@@ -54,7 +54,8 @@ class RunPlan:
     run: the run (folder, scene, preset, effective config, scene fingerprint);
     policy: START, CONTINUE or REUSE; state: NEW, RESUME, FINISHED or REFUSED;
     step: where training starts (RESUME: the checkpoint's step; FINISHED: the last step);
-    extracted: whether the curves' report is there (a FINISHED run is extracted only when not);
+    extracted: whether the curves' report is there and current (`has_current_report`; a FINISHED run
+        is extracted, again, only when not);
     refused_path, reason: for REFUSED, the error `check` raises (`InputError(refused_path, reason)`).
     """
 
@@ -164,7 +165,7 @@ def _check_continuable(path: Path) -> None:
 def _folder_plan(run: RunFolder, policy: str) -> RunPlan:
     """The plan from the folder alone (no scene read): `run` is the run to make (START, REUSE)
     or the one read from the folder (CONTINUE)."""
-    from edgedog.curves.report import REPORT
+    from edgedog.curves.report import has_current_report
 
     path = run.path
     if policy == START:
@@ -178,7 +179,7 @@ def _folder_plan(run: RunFolder, policy: str) -> RunPlan:
             return RunPlan(run, policy, NEW)
     else:
         raise ValueError(f"no run policy {policy!r}; one of {POLICIES}")
-    extracted = (path / REPORT).is_file()
+    extracted = has_current_report(path)
     if is_finished(path):
         return RunPlan(run, policy, FINISHED, _checkpoint_step(path), extracted)
     return RunPlan(run, policy, RESUME, _checkpoint_step(path), extracted)
