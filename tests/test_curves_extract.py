@@ -303,7 +303,7 @@ def test_outlier_filter_on_auto_runs_when_the_silhouette_filter_is_switched_off(
     points, directions = _dense_and_sparse_edges()
     write_primitives(tmp_path / "primitives.ply", points, directions, 0.6)
     primitives = EdgePrimitives.from_arrays(read_ply(tmp_path / "primitives.ply"))
-    config = ExtractConfig(filter_projection=False, filter_silhouette=False)
+    config = ExtractConfig(filter_projection=False, filter_silhouette=False, filter_outliers="auto")
     result = extract_primitives(primitives, config, _MaskedScene(), None)
     assert "after_outliers" in result.counts and "after_silhouette" not in result.counts
     assert not np.isclose(result.points.points[:, 0], 0.2).any()
@@ -428,7 +428,7 @@ def test_cli_extract_on_ground_truth_primitives(abc_nef_scene_dir, tmp_path):
                              "--set", "filter_projection=false"], capture_output=True, text=True)
     assert result.returncode == 0, result.stderr
     assert "after projection" not in result.stdout
-    assert "after silhouette" in result.stdout and "after outliers" not in result.stdout  # 'auto', masks
+    assert "after outliers" in result.stdout and "after silhouette" in result.stdout
     report = json.loads((tmp_path / "extract.json").read_text())
     assert 10 <= report["counts"]["chains"] <= 60
     assert report["metrics"]["curves"]["fscore_10mm"] > 90

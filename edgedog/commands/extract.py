@@ -13,8 +13,7 @@ def add_parser(subparsers) -> None:
     parser = subparsers.add_parser(
         "extract", help="fit parametric curves (lines, cubic Béziers) to a trained run's edge points",
         description="Filter the primitives of a run (opacity, mean edge value over all views, "
-                    "outside the object's masks; statistical outliers where there are no masks), "
-                    "group them into curves "
+                    "statistical outliers, outside the object's masks), group them into curves "
                     "and fit lines and cubic Béziers. Writes curves.json (EMAP format), "
                     "curves.obj, curves.ply, edge_points.ply and extract.json into the run "
                     "folder; when the scene has ground truth, prints the scores of the filtered "

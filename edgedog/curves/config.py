@@ -13,7 +13,8 @@ from typing import Literal, get_args
 from edgedog.errors import ConfigError
 
 OutlierFilter = Literal["auto", "on", "off"]
-"""When the statistical outlier filter runs: 'auto' where the silhouette filter does not."""
+"""When the statistical outlier filter runs: 'on', 'off', or 'auto' (where the silhouette filter
+does not)."""
 
 
 @dataclass(frozen=True)
@@ -38,16 +39,15 @@ class ExtractConfig:
     mask in every view; skipped on scenes without masks. Edge maps also draw the occluding
     contours of curved surfaces, which move with the view and are not edges of the object;
     training places primitives for them around the object, outside it in some views."""
-    filter_outliers: OutlierFilter = "auto"
+    filter_outliers: OutlierFilter = "on"
     """Statistical outliers: drop points whose mean distance to their `outlier_neighbours` nearest
     points exceeds the mean of that value over all points by `outlier_std` standard deviations.
     'auto' runs it only where the silhouette filter does not (a scene without masks, or
-    `filter_silhouette` off). The statistics are relative to the points' own density, so an edge
-    that training holds with few primitives (a sparse circle) is taken for outliers; where the
-    masks are there, the silhouette filter removes the floaters and this filter mostly real
-    edges (126 of the 128 points it dropped from a DexiNed `fast` run of 00004926 lay within 10
-    mm of the truth; on that object's four DexiNed runs F10 +2.7 to +2.8, Comp about 7 -> 3 mm;
-    docs/notes/2026-11-25-outlier-filter.md)."""
+    `filter_silhouette` off). The statistics are relative to the points' own density: an edge
+    that training holds with few primitives is taken for outliers (on the ABC renders, where the
+    silhouette filter removes the floaters, 'auto' gains up to 3.7 F10), while multi-view ghosts
+    inside the object's silhouette, which no mask removes, are what it is there for (the built-in
+    part: 'auto' loses 2.8 to 5.2 F10). docs/notes/2026-11-25-outlier-filter.md."""
     outlier_neighbours: int = 8
     """EdgeGaussians use 25 neighbours; an edge held by fewer primitives than that reaches across
     to other edges and is dropped whole, so 8 (docs/BENCHMARKS.md)."""
