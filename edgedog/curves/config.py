@@ -8,9 +8,10 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
-from typing import Literal, get_args
+from typing import Literal
 
 from edgedog.errors import ConfigError
+from edgedog.settings import check_setting
 
 OutlierFilter = Literal["auto", "on", "off"]
 """When the statistical outlier filter runs: 'on', 'off', or 'auto' (where the silhouette filter
@@ -111,9 +112,7 @@ class ExtractConfig:
         for name in ("link_angle", "corner_angle"):
             if not 0 < getattr(self, name) < 90:
                 raise ConfigError(f"{name} must be in (0, 90) degrees, got {getattr(self, name)}")
-        if self.filter_outliers not in get_args(OutlierFilter):
-            raise ConfigError(f"filter_outliers must be one of {', '.join(get_args(OutlierFilter))}, "
-                              f"got {self.filter_outliers!r}")
+        check_setting("filter_outliers", OutlierFilter, self.filter_outliers)
         if not self.max_outside_pixels >= 0:
             raise ConfigError(f"max_outside_pixels must be >= 0, got {self.max_outside_pixels}")
         if not 0 <= self.max_outlier_share < 1:
