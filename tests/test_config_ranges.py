@@ -338,4 +338,4 @@ def test_level_maps_are_checked_against_the_scene_before_training(monkeypatch):
     with pytest.raises(InputError, match="PiDiNet weights not found"):
         check_level_maps((parse_level("L0=pidinet-nyud"),), ["canny"])
     with pytest.raises(InputError, match="PiDiNet weights not found"):
-        require_detector("pidinet")
+        require_detector("pidinet-multicue")  # only the BSDS weights ship

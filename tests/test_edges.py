@@ -45,9 +45,9 @@ def test_detector_names():
         make_detector("pidinet:side9")
 
 
-def test_auto_without_weights_is_weight_free(monkeypatch):
+def test_auto_without_configured_weights_is_pidinet(monkeypatch):
     monkeypatch.delenv("EDGEDOG_PIDINET", raising=False)
-    assert make_detector("auto").name == "canny"
+    assert make_detector("auto").name == "pidinet"  # its weights ship with edgedog
 
 
 @pytest.fixture

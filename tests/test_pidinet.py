@@ -1,5 +1,6 @@
-"""Tests of our PiDiNet: exact PDC-to-conv conversion, the official checkpoints, the provided
-ABC-NEF PiDiNet maps reproduced, and one-line errors for bad weight files."""
+"""Tests of our PiDiNet: exact PDC-to-conv conversion, the shipped BSDS weights (their hash, the
+provided ABC-NEF PiDiNet maps reproduced with them, the default of 'auto'), the other official
+checkpoints, and one-line errors for bad weight files."""
 
 from __future__ import annotations
 
@@ -11,15 +12,20 @@ import pytest
 import torch
 import torch.nn.functional as F
 
+from edgedog.edges import pidinet
 from edgedog.edges.pidinet import (
+    SHIPPED_SHA256,
+    SHIPPED_WEIGHTS,
     WEIGHTS_MISSING,
     PidinetDetector,
     convert_pdc,
     load_pidinet,
     pidinet_weights,
+    shipped_weights,
 )
+from edgedog.edges.registry import make_detector, require_detector
 from edgedog.errors import InputError
-from tests.helpers.paths import shared_path
+from tests.helpers.paths import REPO, shared_path
 
 URL = "https://github.com/hellozhuo/pidinet"
 
@@ -30,7 +36,8 @@ def _weights(name: str) -> Path:
 
 @pytest.fixture(scope="module")
 def bsds() -> PidinetDetector:
-    return PidinetDetector(_weights("table5_pidinet.pth"))
+    """The shipped BSDS weights: these tests need no ../shared."""
+    return PidinetDetector(shipped_weights())
 
 
 # --- the PDC conversion, against an explicit pixel-difference reference ----------------------
@@ -97,7 +104,7 @@ def test_convert_pdc_leaves_the_trained_kernel_alone():
 
 
 def test_network_runs_only_plain_convolutions():
-    model = load_pidinet(_weights("table5_pidinet.pth"))
+    model = load_pidinet(SHIPPED_WEIGHTS)
     assert not model.training
     leaf_types = {type(m) for m in model.modules() if not list(m.children())}
     assert leaf_types == {torch.nn.Conv2d}
@@ -106,6 +113,79 @@ def test_network_runs_only_plain_convolutions():
     assert model.block1_2.conv1.kernel_size == (5, 5) and model.block1_2.conv1.padding == (2, 2)
     assert model.block4_3.conv1.kernel_size == (5, 5)
     assert model.block4_4.conv1.kernel_size == (3, 3)
+
+
+# --- the shipped BSDS weights ----------------------------------------------------------------
+
+
+def test_the_shipped_weights_are_the_official_bsds_file_with_its_licence():
+    import hashlib
+    import importlib.resources
+    import tomllib
+
+    resource = importlib.resources.files("edgedog.edges") / "weights"
+    assert Path(str(resource / "table5_pidinet.pth")) == SHIPPED_WEIGHTS
+    # The official table5_pidinet.pth of github.com/hellozhuo/pidinet, 2871148 bytes.
+    data = (resource / "table5_pidinet.pth").read_bytes()
+    assert len(data) == 2_871_148
+    assert hashlib.sha256(data).hexdigest() == SHIPPED_SHA256 == (
+        "80860ac267258b5f27486e0ef152a211d0b08120f62aeb185a050acc30da486c")
+    licence = (resource / "LICENSE").read_text()
+    assert "Copyright (c) 2021 Zhuo Su" in licence and "Permission is hereby granted" in licence
+    # Both go into the wheel: listed as package data of edgedog.edges.
+    package_data = tomllib.loads((REPO / "pyproject.toml").read_text())["tool"]["setuptools"]["package-data"]
+    assert sorted(package_data["edgedog.edges"]) == ["weights/LICENSE", "weights/table5_pidinet.pth"]
+
+
+def test_without_configured_weights_pidinet_and_auto_use_the_shipped_ones(monkeypatch, tmp_path):
+    monkeypatch.delenv("EDGEDOG_PIDINET", raising=False)
+    assert pidinet_weights("bsds", None) == SHIPPED_WEIGHTS
+    for name in ("auto", "pidinet", "pidinet:side2"):
+        require_detector(name)
+        detector = make_detector(name)
+        assert isinstance(detector, PidinetDetector) and detector.weights == SHIPPED_WEIGHTS
+    assert make_detector("auto").name == "pidinet"
+    # Only the BSDS weights ship: the other training sets still need theirs.
+    with pytest.raises(InputError, match="edgedog ships only the BSDS ones"):
+        require_detector("pidinet-nyud")
+    # --weights and $EDGEDOG_PIDINET override the shipped file (here with a file of another name).
+    other = tmp_path / "mine.pth"
+    other.write_bytes(SHIPPED_WEIGHTS.read_bytes())
+    assert make_detector("auto", other).weights == other
+    monkeypatch.setenv("EDGEDOG_PIDINET", str(other))
+    assert make_detector("pidinet").weights == other
+
+
+class _Unpickled:
+    """Leaves a file behind when unpickled: proof that a weights file was read by pickle."""
+
+    def __init__(self, marker: Path):
+        self.marker = marker
+
+    def __reduce__(self):
+        return (Path.touch, (self.marker,))
+
+
+@pytest.mark.parametrize("damage", ["truncated", "another network", "a pickle that runs code", "missing"])
+def test_a_damaged_or_replaced_shipped_file_is_one_line_and_never_unpickled(tmp_path, monkeypatch, damage):
+    monkeypatch.delenv("EDGEDOG_PIDINET", raising=False)
+    marker = tmp_path / "unpickled"
+    replaced = tmp_path / "table5_pidinet.pth"
+    if damage == "truncated":
+        replaced.write_bytes(SHIPPED_WEIGHTS.read_bytes()[:-1000])
+    elif damage == "another network":  # a valid checkpoint, not ours
+        torch.save({"state_dict": {"init_block.weight": torch.zeros(60, 3, 3, 3)}}, replaced)
+    elif damage == "a pickle that runs code":
+        torch.save({"state_dict": _Unpickled(marker)}, replaced)
+    monkeypatch.setattr(pidinet, "SHIPPED_WEIGHTS", replaced)
+    for build in (lambda: make_detector("auto"), lambda: require_detector("pidinet")):
+        with pytest.raises(InputError) as info:
+            build()
+        message = _one_line(info.value)
+        assert message.startswith(f"{replaced}: ") and "reinstall edgedog" in message
+        if damage != "missing":
+            assert SHIPPED_SHA256[:16] in message
+    assert not marker.exists()
 
 
 # --- reproducing the provided ABC-NEF PiDiNet maps -------------------------------------------
@@ -213,7 +293,7 @@ def test_corrupt_file_is_a_one_line_error(tmp_path):
 
 def test_truncated_checkpoint_is_a_one_line_error(tmp_path):
     truncated = tmp_path / "table5_pidinet.pth"
-    truncated.write_bytes(_weights("table5_pidinet.pth").read_bytes()[:100_000])
+    truncated.write_bytes(SHIPPED_WEIGHTS.read_bytes()[:100_000])
     with pytest.raises(InputError) as info:
         load_pidinet(truncated)
     assert _one_line(info.value).startswith(f"{truncated}: ")

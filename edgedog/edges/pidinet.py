@@ -24,6 +24,7 @@ Layout (C = 60 / 30 / 20 for the full / -small / -tiny checkpoints, D = the CDCM
 from __future__ import annotations
 
 import hashlib
+import importlib.resources
 import os
 from pathlib import Path
 
@@ -46,9 +47,17 @@ PIDINET_FILES = {
     "multicue": "table7_pidinet.pth",
 }
 
+SHIPPED_VARIANT = "bsds"
+SHIPPED_SHA256 = "80860ac267258b5f27486e0ef152a211d0b08120f62aeb185a050acc30da486c"
+SHIPPED_WEIGHTS = Path(str(importlib.resources.files("edgedog.edges") / "weights"
+                           / PIDINET_FILES[SHIPPED_VARIANT]))
+"""The official table5_pidinet.pth ships with edgedog (package data, its MIT licence beside it):
+the weights of 'pidinet' and 'auto' when none are given. Checked by SHIPPED_SHA256 before torch
+reads it, so a damaged or replaced file is refused, never unpickled."""
+
 WEIGHTS_MISSING = (
-    "PiDiNet weights not found; the official weights are published at "
-    "https://github.com/hellozhuo/pidinet (trained_models/table5_pidinet.pth, ...): "
+    "PiDiNet weights not found (edgedog ships only the BSDS ones); the official weights are "
+    "published at https://github.com/hellozhuo/pidinet (trained_models/table5_pidinet.pth, ...): "
     "pass --weights PATH or set EDGEDOG_PIDINET"
 )
 
@@ -268,13 +277,16 @@ def pidinet_weights(variant: str, weights: str | Path | None) -> Path:
     "bsds-tiny").
 
     `weights` (a file, or a folder holding the official file names) wins; otherwise the
-    EDGEDOG_PIDINET environment variable (file or folder). Raises InputError with where the
-    official weights are published when neither names an existing file.
+    EDGEDOG_PIDINET environment variable (file or folder); otherwise, for "bsds", the shipped
+    weights (`shipped_weights`). Raises InputError with where the official weights are
+    published when none of these names an existing file.
     """
     if variant not in PIDINET_FILES:
         raise ValueError(f"unknown PiDiNet variant {variant!r}; expected one of {sorted(PIDINET_FILES)}")
     filename = PIDINET_FILES[variant]
     source = weights if weights is not None else os.environ.get(WEIGHTS_ENV) or None
+    if source is None and variant == SHIPPED_VARIANT:
+        return shipped_weights()
     if source is None:
         raise InputError(filename, WEIGHTS_MISSING)
     path = Path(source).expanduser()
@@ -282,6 +294,21 @@ def pidinet_weights(variant: str, weights: str | Path | None) -> Path:
         path = path / filename
     if not path.is_file():
         raise InputError(path, WEIGHTS_MISSING)
+    return path
+
+
+def shipped_weights() -> Path:
+    """The BSDS weights installed with edgedog, after checking their SHA-256 against
+    SHIPPED_SHA256: InputError (one line, naming the file) when they are missing or differ."""
+    path = SHIPPED_WEIGHTS
+    if not path.is_file():
+        raise InputError(path, "the PiDiNet weights that ship with edgedog are missing: reinstall "
+                               "edgedog, or pass --weights PATH")
+    digest = _sha256(path)
+    if digest != SHIPPED_SHA256:
+        raise InputError(path, f"SHA-256 {digest[:16]}... is not that of the official BSDS weights "
+                               f"edgedog ships ({SHIPPED_SHA256[:16]}...): the file is damaged or was "
+                               "replaced; reinstall edgedog, or pass --weights PATH")
     return path
 
 

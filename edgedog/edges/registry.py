@@ -24,9 +24,10 @@ Weights = str | Path | None
 """A PiDiNet weights file or folder; None: $EDGEDOG_PIDINET."""
 
 AUTO = "auto"
-"""Stands for `DEFAULT_WITH_WEIGHTS` when PiDiNet's weights are found, else `DEFAULT_WEIGHT_FREE`."""
-DEFAULT_WITH_WEIGHTS = "pidinet"
+"""Stands for `DEFAULT_DETECTOR` on every machine: its weights ship with edgedog."""
+DEFAULT_DETECTOR = "pidinet"
 DEFAULT_WEIGHT_FREE = "canny"
+"""The detector of maps that must not depend on any weights file (the built-in scene's)."""
 
 PIDINET_SIDES = ("side1", "side2", "side3", "side4")
 
@@ -112,9 +113,12 @@ def _build_pidinet(variant: str, weights: Weights, output: str) -> EdgeDetector:
     return PidinetDetector(_pidinet_weights(variant, weights), output=output)
 
 
-def _pidinet_entry(name: str, variant: str, trained_on: str) -> DetectorEntry:
+OFFICIAL_WEIGHTS = "official weights: --weights, $EDGEDOG_PIDINET"
+
+
+def _pidinet_entry(name: str, variant: str, trained_on: str, weights: str) -> DetectorEntry:
     return DetectorEntry(
-        name=name, summary=f"PiDiNet trained on {trained_on} (official weights: --weights, $EDGEDOG_PIDINET)",
+        name=name, summary=f"PiDiNet trained on {trained_on} ({weights})",
         options="side1..side4", parse_options=_pidinet_options,
         factory=functools.partial(_build_pidinet, variant),
         require=functools.partial(_pidinet_weights, variant))
@@ -127,9 +131,10 @@ ENTRIES = (
                                         "default to 50,150)",
                   options="LOW,HIGH", parse_options=_canny_options,
                   factory=lambda weights, **thresholds: CannyDetector(**thresholds)),
-    _pidinet_entry("pidinet", "bsds", "BSDS500"),
-    _pidinet_entry("pidinet-nyud", "nyud", "NYUD"),
-    _pidinet_entry("pidinet-multicue", "multicue", "Multicue"),
+    _pidinet_entry("pidinet", "bsds", "BSDS500", "weights shipped with edgedog; --weights, $EDGEDOG_PIDINET "
+                                                 "override them"),
+    _pidinet_entry("pidinet-nyud", "nyud", "NYUD", OFFICIAL_WEIGHTS),
+    _pidinet_entry("pidinet-multicue", "multicue", "Multicue", OFFICIAL_WEIGHTS),
     DetectorEntry(name="dexined", summary="DexiNed maps that scenes bring (EMAP's edge_DexiNed/); not "
                                           "computed by edgedog",
                   training_defaults=DEXINED_MAP_DEFAULTS),
@@ -142,7 +147,7 @@ def detector_entry(name: str) -> DetectorEntry | None:
     that (a scene's own maps of another name). 'auto' is resolved first."""
     family = name.partition(":")[0].lower()
     if family == AUTO:
-        family = _resolved(AUTO, None)
+        family = DEFAULT_DETECTOR
     return next((entry for entry in ENTRIES if entry.name == family), None)
 
 
@@ -154,13 +159,13 @@ def detector_names() -> list[str]:
 def detectors_help() -> str:
     """One line per buildable family, 'usage: summary', then 'auto', for help texts."""
     lines = [f"{entry.usage}: {entry.summary}" for entry in ENTRIES if entry.factory is not None]
-    auto = f"{AUTO}: {DEFAULT_WITH_WEIGHTS} when its weights are found, else {DEFAULT_WEIGHT_FREE}"
+    auto = f"{AUTO}: {DEFAULT_DETECTOR} (its weights ship with edgedog)"
     return "\n".join([*lines, auto])
 
 
 def available_detectors(weights: Weights = None) -> list[str]:
-    """The families `make_detector(name, weights)` can build now (PiDiNet's when its weights are
-    found)."""
+    """The families `make_detector(name, weights)` can build now (PiDiNet's other variants when
+    their weights are found)."""
     return [entry.name for entry in ENTRIES if entry.factory is not None and _met(entry, weights)]
 
 
@@ -181,7 +186,8 @@ def training_defaults(detector: str) -> dict[str, object]:
 
 
 def pidinet_available(weights: Weights = None) -> bool:
-    """Whether PiDiNet weights can be found (explicitly, or through EDGEDOG_PIDINET)."""
+    """Whether weights beyond the shipped BSDS ones may be found (explicitly, or through
+    EDGEDOG_PIDINET): those of PiDiNet's NYUD and Multicue variants."""
     return weights is not None or bool(os.environ.get("EDGEDOG_PIDINET"))
 
 
@@ -205,7 +211,7 @@ def make_detector(name: str, weights: Weights = None) -> EdgeDetector:
     Raises:
         ConfigError naming the choices for an unknown name; InputError for missing weights.
     """
-    name = _resolved(name, weights)
+    name = _resolved(name)
     entry, options = _parsed(name)
     detector = entry.factory(weights, **options)
     detector.name = name
@@ -215,7 +221,7 @@ def make_detector(name: str, weights: Weights = None) -> EdgeDetector:
 def require_detector(name: str, weights: Weights = None) -> None:
     """Check, without building it, that `make_detector(name, weights)` can build `name`: a
     known name whose weights (PiDiNet's) are found. Raises ConfigError or InputError."""
-    entry, _ = _parsed(_resolved(name, weights))
+    entry, _ = _parsed(_resolved(name))
     if entry.require is not None:
         entry.require(weights)
 
@@ -224,7 +230,7 @@ def _parsed(name: str) -> tuple[DetectorEntry, dict[str, object]] | None:
     """(entry, factory options) of a buildable `name`; None when no buildable family is called
     that. ConfigError for options the family does not take."""
     if name == AUTO:
-        return _parsed(DEFAULT_WEIGHT_FREE)
+        return _parsed(DEFAULT_DETECTOR)
     family, sep, options = name.partition(":")
     entry = next((e for e in ENTRIES if e.name == family and e.factory is not None), None)
     if entry is None:
@@ -237,12 +243,10 @@ def _parsed(name: str) -> tuple[DetectorEntry, dict[str, object]] | None:
         raise ConfigError(f"detector {name!r}: {error}") from None
 
 
-def _resolved(name: str, weights: Weights) -> str:
+def _resolved(name: str) -> str:
     """`name` with 'auto' replaced by the detector it stands for; ConfigError naming the choices
     when no detector is called `name`."""
     if not is_detector_name(name):
         usages = ", ".join(e.usage for e in ENTRIES if e.factory is not None)
         raise ConfigError(f"unknown detector {name!r}; choose from {usages} or {AUTO}")
-    if name == AUTO:
-        return DEFAULT_WITH_WEIGHTS if pidinet_available(weights) else DEFAULT_WEIGHT_FREE
-    return name
+    return DEFAULT_DETECTOR if name == AUTO else name
