@@ -160,7 +160,7 @@ def test_command_line_overrides_follow_the_suites_set(tmp_path, scenes):
 
 
 def test_a_missing_suite_file(tmp_path):
-    with pytest.raises(InputError, match="suite file not found"):
+    with pytest.raises(InputError, match="file not found"):
         load_suite(tmp_path / "absent.yaml")
 
 

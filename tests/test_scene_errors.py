@@ -156,7 +156,7 @@ def test_nerf_nan_in_transform_matrix(tmp_path):
     assert "NaN" in transforms.read_text()
     with pytest.raises(InputError) as info:
         load_scene(root)
-    assert_one_line(info.value, transforms, "frame 1", "NaN")
+    assert_one_line(info.value, transforms, "frames[1]", "NaN")
 
 
 def test_nerf_transform_matrix_of_wrong_shape(tmp_path):
@@ -303,7 +303,7 @@ def test_emap_nan_camtoworld(tmp_path):
     write_json(meta_path, meta)
     with pytest.raises(InputError) as info:
         load_scene(root)
-    assert_one_line(info.value, meta_path, "frame 1", "NaN")
+    assert_one_line(info.value, meta_path, "frames[1]", "NaN")
 
 
 def test_emap_missing_intrinsics(tmp_path):

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from edgedog.errors import ConfigError, InputError
+from edgedog.files import read_yaml
 from edgedog.settings import setting_paths, value_at
 from edgedog.train.config import DEFAULT_PRESET, MAX_SEED, PRESETS, TrainConfig, preset, with_overrides
 
@@ -90,20 +91,7 @@ class RunSpec:
 def load_suite(path: str | Path, overrides: tuple[str, ...] = ()) -> Suite:
     """Read and check a suite file, with `overrides` (the command's --set) applied to every run
     after its `set`; any problem is one InputError naming the file and the key."""
-    import yaml
-
-    path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise InputError(path, "suite file not found") from None
-    except UnicodeDecodeError:
-        raise InputError(path, "is not a text file") from None
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        raise InputError(path, f"invalid YAML ({' '.join(str(exc).split())})") from None
-    return suite_from_dict(data, path, overrides)
+    return suite_from_dict(read_yaml(path), Path(path), overrides)
 
 
 def suite_from_dict(data, path: Path, overrides: tuple[str, ...] = ()) -> Suite:

@@ -51,8 +51,8 @@ def _run_config_data(path: Path) -> dict | None:
     if not file.is_file():
         return None
     try:
-        data = json.loads(file.read_text(encoding="utf-8"))
-    except (OSError, ValueError):
+        data = read_json(file)
+    except InputError:
         return None
     if not isinstance(data, dict):
         return None
