@@ -1,13 +1,15 @@
 // The one translation unit that includes torch/extension.h. It registers the rasterizer's
 // stages as ops of torch's dispatcher (library `edgedog`, schemas below), with these functions
-// as their CPU kernels: each checks its tensors, allocates the outputs and calls the plain-C++
-// kernels of csrc/. Another device adds a TORCH_LIBRARY_IMPL(edgedog, <device>, m) block with
-// the same op names; renderer/ops.py calls the ops and owns their autograd. The Python module
-// `edgedog.renderer._C` itself only reports build facts and sets the allocator up.
+// as their kernels on the CPU and, in a CUDA build (EDGEDOG_WITH_CUDA), on CUDA: each checks
+// that its tensors share one device, allocates the outputs there and calls the plain-C++
+// kernels of csrc/ or the CUDA launchers of cuda_kernels.h. renderer/ops.py calls the ops and
+// owns their autograd. The Python module `edgedog.renderer._C` itself only reports build facts
+// and sets the allocator up.
 #include <torch/extension.h>
 
 #include <malloc.h>
 
+#include <limits>
 #include <optional>
 #include <string>
 #include <tuple>
@@ -18,12 +20,35 @@
 #include "rasterize.h"
 #include "tiles.h"
 
+#ifdef EDGEDOG_WITH_CUDA
+#include <c10/cuda/CUDAStream.h>
+#include <c10/cuda/CUDAGuard.h>
+
+#include "cuda_kernels.h"
+
+// Runs `launch` (an expression of `stream`, returning a cudaError_t) on the device of the
+// tensor `like`, on torch's current stream.
+#define EDGEDOG_CUDA_LAUNCH(like, launch)                                                  \
+  do {                                                                                     \
+    const c10::cuda::CUDAGuard guard((like).device());                                     \
+    const cudaStream_t stream = c10::cuda::getCurrentCUDAStream();                          \
+    const cudaError_t error = (launch);                                                    \
+    TORCH_CHECK(error == cudaSuccess, "edgedog CUDA kernel: ", cudaGetErrorString(error)); \
+  } while (0)
+#else
+#define EDGEDOG_CUDA_LAUNCH(like, launch) TORCH_CHECK(false, "edgedog was built without CUDA")
+#endif
+
 namespace {
 
 using torch::Tensor;
 
-void check_float(const Tensor& t, const char* name, std::vector<int64_t> shape) {
-  TORCH_CHECK(t.device().is_cpu(), name, " must be a CPU tensor");
+void check_device(const Tensor& t, const char* name, const torch::Device& device) {
+  TORCH_CHECK(t.device() == device, name, " is on ", t.device(), ", the other inputs on ", device);
+}
+
+void check_float(const Tensor& t, const char* name, std::vector<int64_t> shape, const torch::Device& device) {
+  check_device(t, name, device);
   TORCH_CHECK(t.scalar_type() == torch::kFloat32, name, " must be float32, got ", t.scalar_type());
   TORCH_CHECK(t.is_contiguous(), name, " must be contiguous");
   TORCH_CHECK(t.dim() == int64_t(shape.size()), name, " must have ", shape.size(), " dimensions");
@@ -38,8 +63,9 @@ edgedog::PinholeCamera camera_from(const Tensor& K, const Tensor& w2c, int64_t w
   TORCH_CHECK(K.sizes() == torch::IntArrayRef({3, 3}), "K must be 3x3");
   TORCH_CHECK(w2c.sizes() == torch::IntArrayRef({4, 4}), "w2c must be 4x4");
   TORCH_CHECK(width > 0 && height > 0, "image size must be positive");
-  const auto k = K.to(torch::kFloat64).contiguous();
-  const auto m = w2c.to(torch::kFloat64).contiguous();
+  // Read on the host (renderer/ops.py keeps cameras there: no copy back from a device).
+  const auto k = K.to(torch::kCPU, torch::kFloat64).contiguous();
+  const auto m = w2c.to(torch::kCPU, torch::kFloat64).contiguous();
   const double* kp = k.data_ptr<double>();
   const double* mp = m.data_ptr<double>();
   edgedog::PinholeCamera cam{};
@@ -60,10 +86,11 @@ edgedog::PinholeCamera camera_from(const Tensor& K, const Tensor& w2c, int64_t w
 edgedog::ProjectInputs project_inputs(const Tensor& means, const Tensor& scales, const Tensor& quats,
                                       const Tensor& support_q, double eps2d) {
   const int64_t n = means.size(0);
-  check_float(means, "means", {n, 3});
-  check_float(scales, "scales", {n, 3});
-  check_float(quats, "quats", {n, 4});
-  check_float(support_q, "support_q", {n});
+  const auto device = means.device();
+  check_float(means, "means", {n, 3}, device);
+  check_float(scales, "scales", {n, 3}, device);
+  check_float(quats, "quats", {n, 4}, device);
+  check_float(support_q, "support_q", {n}, device);
   return {n,
           means.data_ptr<float>(),
           scales.data_ptr<float>(),
@@ -84,9 +111,14 @@ Tensors5 project_forward(const Tensor& means, const Tensor& scales, const Tensor
   Tensor means2d = torch::empty({in.n, 2}, f), conics = torch::empty({in.n, 3}, f);
   Tensor depths = torch::empty({in.n}, f), extents = torch::empty({in.n, 2}, f);
   Tensor valid = torch::empty({in.n}, f.dtype(torch::kBool));
-  edgedog::project_forward(cam, in,
-                           {means2d.data_ptr<float>(), conics.data_ptr<float>(), depths.data_ptr<float>(),
-                            extents.data_ptr<float>(), reinterpret_cast<uint8_t*>(valid.data_ptr<bool>())});
+  const edgedog::ProjectOutputs out{means2d.data_ptr<float>(), conics.data_ptr<float>(),
+                                    depths.data_ptr<float>(), extents.data_ptr<float>(),
+                                    reinterpret_cast<uint8_t*>(valid.data_ptr<bool>())};
+  if (means.is_cuda()) {
+    EDGEDOG_CUDA_LAUNCH(means, edgedog::cuda::project_forward(cam, in, out, stream));
+  } else {
+    edgedog::project_forward(cam, in, out);
+  }
   return {means2d, conics, depths, extents, valid};
 }
 
@@ -96,25 +128,70 @@ Tensors3 project_backward(const Tensor& means, const Tensor& scales, const Tenso
                           const Tensor& g_conics, const Tensor& g_depths) {
   const auto in = project_inputs(means, scales, quats, support_q, eps2d);
   const auto cam = camera_from(K, w2c, width, height, near);
-  check_float(g_means2d, "grad means2d", {in.n, 2});
-  check_float(g_conics, "grad conics", {in.n, 3});
-  check_float(g_depths, "grad depths", {in.n});
+  check_float(g_means2d, "grad means2d", {in.n, 2}, means.device());
+  check_float(g_conics, "grad conics", {in.n, 3}, means.device());
+  check_float(g_depths, "grad depths", {in.n}, means.device());
   Tensor g_means = torch::empty_like(means), g_scales = torch::empty_like(scales);
   Tensor g_quats = torch::empty_like(quats);
-  edgedog::project_backward(
-      cam, in, {g_means2d.data_ptr<float>(), g_conics.data_ptr<float>(), g_depths.data_ptr<float>()},
-      {g_means.data_ptr<float>(), g_scales.data_ptr<float>(), g_quats.data_ptr<float>()});
+  const edgedog::ProjectGradOutputs go{g_means2d.data_ptr<float>(), g_conics.data_ptr<float>(),
+                                       g_depths.data_ptr<float>()};
+  const edgedog::ProjectGradInputs gi{g_means.data_ptr<float>(), g_scales.data_ptr<float>(),
+                                      g_quats.data_ptr<float>()};
+  if (means.is_cuda()) {
+    EDGEDOG_CUDA_LAUNCH(means, edgedog::cuda::project_backward(cam, in, go, gi, stream));
+  } else {
+    edgedog::project_backward(cam, in, go, gi);
+  }
   return {g_means, g_scales, g_quats};
 }
+
+#ifdef EDGEDOG_WITH_CUDA
+// The lists on the device: each primitive's (tile, depth) keys, sorted stably by torch (so the
+// index breaks depth ties, as on the CPU), and each tile's first entry found by binary search.
+// The lists' length is read back to the host once, to allocate them.
+std::tuple<Tensor, Tensor> tile_lists_cuda(const Tensor& means2d, const Tensor& depths, const Tensor& extents,
+                                           const Tensor& valid, int64_t width, int64_t height) {
+  const int64_t n = means2d.size(0);
+  const int64_t tiles = ((width + edgedog::kTileSize - 1) / edgedog::kTileSize) *
+                        ((height + edgedog::kTileSize - 1) / edgedog::kTileSize);
+  const auto i64 = means2d.options().dtype(torch::kInt64);
+  const auto* mask = reinterpret_cast<const uint8_t*>(valid.data_ptr<bool>());
+  Tensor counts = torch::empty({n}, i64);
+  EDGEDOG_CUDA_LAUNCH(
+      means2d, edgedog::cuda::tile_counts(n, means2d.data_ptr<float>(), extents.data_ptr<float>(), mask,
+                                          int(width), int(height), counts.data_ptr<int64_t>(), stream));
+  const Tensor ends = counts.cumsum(0);
+  const int64_t total = n == 0 ? 0 : ends[n - 1].item<int64_t>();
+  TORCH_CHECK(total <= std::numeric_limits<int32_t>::max(), "the tile lists would hold ", total,
+              " entries, more than int32 offsets can index");
+  Tensor keys = torch::empty({total}, i64);
+  Tensor values = torch::empty({total}, means2d.options().dtype(torch::kInt32));
+  EDGEDOG_CUDA_LAUNCH(means2d,
+                      edgedog::cuda::tile_keys(n, means2d.data_ptr<float>(), depths.data_ptr<float>(),
+                                               extents.data_ptr<float>(), mask, int(width), int(height),
+                                               ends.data_ptr<int64_t>(), keys.data_ptr<int64_t>(),
+                                               values.data_ptr<int32_t>(), stream));
+  const auto [sorted, order] = keys.sort(/*stable=*/true, /*dim=*/0, /*descending=*/false);
+  const Tensor tile_of = torch::bitwise_right_shift(sorted, 32);
+  const Tensor offsets = torch::searchsorted(tile_of, torch::arange(tiles + 1, i64), /*out_int32=*/true);
+  return {offsets, values.index_select(0, order)};
+}
+#endif
 
 std::tuple<Tensor, Tensor> tile_lists(const Tensor& means2d, const Tensor& depths, const Tensor& extents,
                                       const Tensor& valid, int64_t width, int64_t height) {
   const int64_t n = means2d.size(0);
-  check_float(means2d, "means2d", {n, 2});
-  check_float(depths, "depths", {n});
-  check_float(extents, "extents", {n, 2});
+  const auto device = means2d.device();
+  check_float(means2d, "means2d", {n, 2}, device);
+  check_float(depths, "depths", {n}, device);
+  check_float(extents, "extents", {n, 2}, device);
+  check_device(valid, "valid", device);
   TORCH_CHECK(valid.scalar_type() == torch::kBool && valid.is_contiguous() && valid.numel() == n,
               "valid must be a contiguous bool tensor of n entries");
+  TORCH_CHECK(width > 0 && height > 0, "image size must be positive");
+#ifdef EDGEDOG_WITH_CUDA
+  if (means2d.is_cuda()) return tile_lists_cuda(means2d, depths, extents, valid, width, height);
+#endif
   const auto lists = edgedog::build_tile_lists(
       n, means2d.data_ptr<float>(), depths.data_ptr<float>(), extents.data_ptr<float>(),
       reinterpret_cast<const uint8_t*>(valid.data_ptr<bool>()), int(width), int(height));
@@ -138,17 +215,24 @@ SplatArgs splat_args(const Tensor& means2d, const Tensor& conics, const Tensor& 
                      const Tensor& colors, const Tensor& offsets, const Tensor& ids, int64_t width,
                      int64_t height, const std::optional<Tensor>& background) {
   const int64_t n = means2d.size(0);
-  check_float(means2d, "means2d", {n, 2});
-  check_float(conics, "conics", {n, 3});
-  check_float(depths, "depths", {n});
-  check_float(extents, "extents", {n, 2});
-  check_float(opacity, "opacity", {n});
-  check_float(a, "a", {n});
-  check_float(t, "t", {n});
-  check_float(support, "support", {n});
-  check_float(colors, "colors", {n, -1});
+  const auto device = means2d.device();
+  check_float(means2d, "means2d", {n, 2}, device);
+  check_float(conics, "conics", {n, 3}, device);
+  check_float(depths, "depths", {n}, device);
+  check_float(extents, "extents", {n, 2}, device);
+  check_float(opacity, "opacity", {n}, device);
+  check_float(a, "a", {n}, device);
+  check_float(t, "t", {n}, device);
+  check_float(support, "support", {n}, device);
+  check_float(colors, "colors", {n, -1}, device);
   const int64_t C = colors.size(1);
   TORCH_CHECK(C >= 1, "colors need at least one channel");
+#ifdef EDGEDOG_WITH_CUDA
+  TORCH_CHECK(!device.is_cuda() || C <= edgedog::cuda::kMaxChannels, "the CUDA kernels take at most ",
+              edgedog::cuda::kMaxChannels, " colour channels, got ", C);
+#endif
+  check_device(offsets, "tile offsets", device);
+  check_device(ids, "tile ids", device);
   const int tiles_x = int((width + edgedog::kTileSize - 1) / edgedog::kTileSize);
   const int tiles_y = int((height + edgedog::kTileSize - 1) / edgedog::kTileSize);
   TORCH_CHECK(offsets.scalar_type() == torch::kInt32 && offsets.is_contiguous() &&
@@ -157,7 +241,7 @@ SplatArgs splat_args(const Tensor& means2d, const Tensor& conics, const Tensor& 
   TORCH_CHECK(ids.scalar_type() == torch::kInt32 && ids.is_contiguous(), "tile ids must be int32");
   const float* bg = nullptr;
   if (background.has_value()) {
-    check_float(*background, "background", {C});
+    check_float(*background, "background", {C}, device);
     bg = background->data_ptr<float>();
   }
   return {{n, int(C), means2d.data_ptr<float>(), conics.data_ptr<float>(), depths.data_ptr<float>(),
@@ -179,14 +263,19 @@ Tensors5 rasterize_forward(const Tensor& means2d, const Tensor& conics, const Te
   Tensor alpha = torch::empty({height, width}, f), depth = torch::empty({height, width}, f);
   Tensor final_T = torch::empty({height, width}, f);
   Tensor last = torch::empty({height, width}, f.dtype(torch::kInt32));
-  edgedog::rasterize_forward(args.splats, args.frame, args.tiles,
-                             {image.data_ptr<float>(), alpha.data_ptr<float>(), depth.data_ptr<float>(),
-                              final_T.data_ptr<float>(), last.data_ptr<int32_t>()});
+  const edgedog::RasterOutputs out{image.data_ptr<float>(), alpha.data_ptr<float>(), depth.data_ptr<float>(),
+                                   final_T.data_ptr<float>(), last.data_ptr<int32_t>()};
+  if (means2d.is_cuda()) {
+    EDGEDOG_CUDA_LAUNCH(means2d,
+                        edgedog::cuda::rasterize_forward(args.splats, args.frame, args.tiles, out, stream));
+  } else {
+    edgedog::rasterize_forward(args.splats, args.frame, args.tiles, out);
+  }
   return {image, alpha, depth, final_T, last};
 }
 
 void check_state(const Tensor& final_T, const Tensor& last, int64_t width, int64_t height) {
-  check_float(final_T, "final_T", {height, width});
+  check_float(final_T, "final_T", {height, width}, last.device());
   TORCH_CHECK(last.scalar_type() == torch::kInt32 && last.is_contiguous() && last.numel() == width * height,
               "last must be a contiguous int32 (H, W) tensor");
 }
@@ -199,18 +288,33 @@ std::tuple<Tensor, Tensor, Tensor, Tensor, Tensor, Tensor, Tensor, Tensor> raste
     const Tensor& g_alpha, const Tensor& g_depth) {
   const auto args = splat_args(means2d, conics, depths, extents, opacity, a, t, support, colors, offsets, ids,
                                width, height, background);
+  const auto device = means2d.device();
+  check_device(last, "last", device);
   check_state(final_T, last, width, height);
-  check_float(g_image, "grad image", {height, width, colors.size(1)});
-  check_float(g_alpha, "grad alpha", {height, width});
-  check_float(g_depth, "grad depth", {height, width});
-  Tensor gm = torch::empty_like(means2d), gc = torch::empty_like(conics), gd = torch::empty_like(depths);
-  Tensor go = torch::empty_like(opacity), ga = torch::empty_like(a), gt = torch::empty_like(t);
-  Tensor gcol = torch::empty_like(colors), absgrad = torch::empty_like(means2d);
-  edgedog::rasterize_backward(
-      args.splats, args.frame, args.tiles, final_T.data_ptr<float>(), last.data_ptr<int32_t>(),
-      {g_image.data_ptr<float>(), g_alpha.data_ptr<float>(), g_depth.data_ptr<float>()},
-      {gm.data_ptr<float>(), gc.data_ptr<float>(), gd.data_ptr<float>(), go.data_ptr<float>(),
-       ga.data_ptr<float>(), gt.data_ptr<float>(), gcol.data_ptr<float>(), absgrad.data_ptr<float>()});
+  check_float(g_image, "grad image", {height, width, colors.size(1)}, device);
+  check_float(g_alpha, "grad alpha", {height, width}, device);
+  check_float(g_depth, "grad depth", {height, width}, device);
+  // The CUDA kernels add into their outputs; the CPU's write every entry.
+  const auto make = [&](const Tensor& like) {
+    return means2d.is_cuda() ? torch::zeros_like(like) : torch::empty_like(like);
+  };
+  Tensor gm = make(means2d), gc = make(conics), gd = make(depths), go = make(opacity), ga = make(a),
+         gt = make(t);
+  Tensor gcol = make(colors), absgrad = make(means2d);
+  const edgedog::RasterGradOutputs grad_out{g_image.data_ptr<float>(), g_alpha.data_ptr<float>(),
+                                            g_depth.data_ptr<float>()};
+  const edgedog::SplatGrads grads{gm.data_ptr<float>(),   gc.data_ptr<float>(),     gd.data_ptr<float>(),
+                                  go.data_ptr<float>(),   ga.data_ptr<float>(),     gt.data_ptr<float>(),
+                                  gcol.data_ptr<float>(), absgrad.data_ptr<float>()};
+  const float* final_T_ptr = final_T.data_ptr<float>();
+  const int32_t* last_ptr = last.data_ptr<int32_t>();
+  if (means2d.is_cuda()) {
+    EDGEDOG_CUDA_LAUNCH(
+        means2d, edgedog::cuda::rasterize_backward(args.splats, args.frame, args.tiles, final_T_ptr, last_ptr,
+                                                   grad_out, grads, stream));
+  } else {
+    edgedog::rasterize_backward(args.splats, args.frame, args.tiles, final_T_ptr, last_ptr, grad_out, grads);
+  }
   return {gm, gc, gd, go, ga, gt, gcol, absgrad};
 }
 
@@ -221,10 +325,19 @@ Tensor rasterize_fisher(const Tensor& means2d, const Tensor& conics, const Tenso
                         const Tensor& final_T, const Tensor& last) {
   const auto args = splat_args(means2d, conics, depths, extents, opacity, a, t, support, colors, offsets, ids,
                                width, height, background);
+  check_device(last, "last", means2d.device());
   check_state(final_T, last, width, height);
   Tensor fisher = torch::zeros({means2d.size(0)}, means2d.options());
-  edgedog::rasterize_fisher(args.splats, args.frame, args.tiles, final_T.data_ptr<float>(),
-                            last.data_ptr<int32_t>(), fisher.data_ptr<float>());
+  const float* final_T_ptr = final_T.data_ptr<float>();
+  const int32_t* last_ptr = last.data_ptr<int32_t>();
+  if (means2d.is_cuda()) {
+    EDGEDOG_CUDA_LAUNCH(
+        means2d, edgedog::cuda::rasterize_fisher(args.splats, args.frame, args.tiles, final_T_ptr, last_ptr,
+                                                 fisher.data_ptr<float>(), stream));
+  } else {
+    edgedog::rasterize_fisher(args.splats, args.frame, args.tiles, final_T_ptr, last_ptr,
+                              fisher.data_ptr<float>());
+  }
   return fisher;
 }
 
@@ -262,17 +375,27 @@ TORCH_LIBRARY(edgedog, m) {
 #undef EDGEDOG_SPLATS
 #undef EDGEDOG_PROJECT
 
-TORCH_LIBRARY_IMPL(edgedog, CPU, m) {
-  m.impl("project_forward", &project_forward);
-  m.impl("project_backward", &project_backward);
-  m.impl("tile_lists", &tile_lists);
-  m.impl("rasterize_forward", &rasterize_forward);
-  m.impl("rasterize_backward", &rasterize_backward);
-  m.impl("rasterize_fisher", &rasterize_fisher);
-}
+// The same functions serve every device: each dispatches on its first tensor's.
+#define EDGEDOG_IMPLS(m)                             \
+  m.impl("project_forward", &project_forward);       \
+  m.impl("project_backward", &project_backward);     \
+  m.impl("tile_lists", &tile_lists);                 \
+  m.impl("rasterize_forward", &rasterize_forward);   \
+  m.impl("rasterize_backward", &rasterize_backward); \
+  m.impl("rasterize_fisher", &rasterize_fisher)
+
+TORCH_LIBRARY_IMPL(edgedog, CPU, m) { EDGEDOG_IMPLS(m); }
+
+#ifdef EDGEDOG_WITH_CUDA
+TORCH_LIBRARY_IMPL(edgedog, CUDA, m) { EDGEDOG_IMPLS(m); }
+#endif
+
+#undef EDGEDOG_IMPLS
 
 PYBIND11_MODULE(TORCH_EXTENSION_NAME, m) {
-  m.doc() = "EdgeDoG CPU kernels: the ops are torch.ops.edgedog.*, registered on import";
+  m.doc() =
+      "EdgeDoG kernels (CPU, and CUDA in a CUDA build): the ops are torch.ops.edgedog.*, registered on "
+      "import";
   m.def(
       "tune_allocator",
       []() {
@@ -291,9 +414,14 @@ PYBIND11_MODULE(TORCH_EXTENSION_NAME, m) {
         d["openmp"] = info.openmp;
         d["max_threads"] = info.max_threads;
         d["compiler"] = info.compiler;
+#ifdef EDGEDOG_WITH_CUDA
+        d["cuda"] = true;
+#else
+        d["cuda"] = false;
+#endif
         return d;
       },
-      "Build facts: OpenMP on or off, its thread count, the compiler.");
+      "Build facts: OpenMP on or off, its thread count, the compiler, whether the CUDA kernels are in.");
   m.def(
       "constants",
       []() {

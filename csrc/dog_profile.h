@@ -7,13 +7,15 @@
 
 #include <cmath>
 
+#include "portable.h"
+
 namespace edgedog {
 
 constexpr float kSeriesLimit = 0.1f;  // |x| below: Taylor series for phi and phi'
 constexpr float kNearLogT = 0.5f;     // s below: the cancellation-free form
 
 // phi(x) = (e^x - 1) / x and its derivative psi(x) = (x e^x - e^x + 1) / x^2.
-inline void phi_psi(float x, float& phi, float& psi) {
+EDGEDOG_HD inline void phi_psi(float x, float& phi, float& psi) {
   if (std::fabs(x) < kSeriesLimit) {
     phi = 1.f + x * (1.f / 2 + x * (1.f / 6 + x * (1.f / 24 + x * (1.f / 120))));
     psi = 1.f / 2 + x * (1.f / 3 + x * (1.f / 8 + x * (1.f / 30 + x * (1.f / 144))));
@@ -32,7 +34,7 @@ struct DogTerms {
 };
 
 // D(u; t), keeping in `k` what `dog_derivatives` needs.
-inline float dog_value(float u, float t, DogTerms& k) {
+EDGEDOG_HD inline float dog_value(float u, float t, DogTerms& k) {
   const float s = 1.f - t;
   k.e_u = std::exp(-u);
   k.e_tu = std::exp(-t * u);
@@ -42,7 +44,7 @@ inline float dog_value(float u, float t, DogTerms& k) {
 }
 
 // dD/du and dD/dt at the (u, t) that `dog_value` filled `k` for.
-inline void dog_derivatives(float u, float t, const DogTerms& k, float& d_du, float& d_dt) {
+EDGEDOG_HD inline void dog_derivatives(float u, float t, const DogTerms& k, float& d_du, float& d_dt) {
   const float s = 1.f - t;
   if (s >= kNearLogT) {
     const float numerator = k.e_u - t * k.e_tu;

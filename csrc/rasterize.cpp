@@ -1,73 +1,19 @@
 #include "rasterize.h"
 
 #include <algorithm>
-#include <cmath>
 #include <vector>
 
-#include "constants.h"
-#include "dog_profile.h"
 #include "parallel.h"
+#include "splat_math.h"
 
 namespace edgedog {
 namespace {
 
-constexpr int kTilePixels = kTileSize * kTileSize;
-
-// One primitive, clipped to the pixels of one tile that its support ellipse can reach.
-struct Footprint {
-  float mx, my, A, B, C, inv_2a, u_cut, opacity, t;
-  int x0, x1, y0, y1;  // inclusive pixel range inside the tile; empty when x0 > x1
-};
-
-struct Tile {
-  int x0, y0, width, height;  // pixel origin and size (edge tiles are smaller)
-};
-
-Tile tile_at(const TileView& tiles, int index, const Frame& f) {
-  const int x0 = (index % tiles.tiles_x) * kTileSize;
-  const int y0 = (index / tiles.tiles_x) * kTileSize;
-  return {x0, y0, std::min(kTileSize, f.width - x0), std::min(kTileSize, f.height - y0)};
-}
-
-Footprint footprint(const Splats& s, int32_t i, const Tile& tile) {
-  Footprint fp;
-  fp.mx = s.means2d[2 * i];
-  fp.my = s.means2d[2 * i + 1];
-  fp.A = s.conics[3 * i];
-  fp.B = s.conics[3 * i + 1];
-  fp.C = s.conics[3 * i + 2];
-  fp.inv_2a = 0.5f / s.a[i];
-  fp.u_cut = s.support[i];
-  fp.opacity = s.opacity[i];
-  fp.t = s.t[i];
-  const float ex = s.extents[2 * i], ey = s.extents[2 * i + 1];
-  fp.x0 = int(std::max(std::ceil(fp.mx - ex), float(tile.x0)));
-  fp.x1 = int(std::min(std::floor(fp.mx + ex), float(tile.x0 + tile.width - 1)));
-  fp.y0 = int(std::max(std::ceil(fp.my - ey), float(tile.y0)));
-  fp.y1 = int(std::min(std::floor(fp.my + ey), float(tile.y0 + tile.height - 1)));
-  return fp;
-}
-
-// Alpha of a footprint at pixel (px, py), or false when the primitive is skipped there. The
-// forward and backward passes call this same function, so they skip the same pixels.
-struct PixelHit {
-  float dx, dy, u, D, alpha;
-  DogTerms terms;  // what the backward pass's derivatives of D reuse
-  bool clamped;    // alpha hit kAlphaMax: no gradient through the footprint
-};
-
-inline bool hit_pixel(const Footprint& fp, int px, int py, PixelHit& h) {
-  h.dx = float(px) - fp.mx;
-  h.dy = float(py) - fp.my;
-  const float q = fp.A * h.dx * h.dx + 2.f * fp.B * h.dx * h.dy + fp.C * h.dy * h.dy;
-  h.u = q * fp.inv_2a;
-  if (!(h.u <= fp.u_cut)) return false;
-  h.D = dog_value(h.u, fp.t, h.terms);
-  const float raw = fp.opacity * h.D;
-  h.clamped = raw > kAlphaMax;
-  h.alpha = h.clamped ? kAlphaMax : raw;
-  return h.alpha >= kAlphaMin;
-}
+using splat::Behind;
+using splat::Footprint;
+using splat::kTilePixels;
+using splat::PixelHit;
+using splat::Tile;
 
 // Per-thread gradient buffers, reduced at the end: tiles touch primitives in any order.
 struct ThreadBuffers {
@@ -116,7 +62,7 @@ void rasterize_forward(const Splats& s, const Frame& f, const TileView& tiles, c
     std::vector<uint8_t> done(kTilePixels);
 #pragma omp for schedule(dynamic, 4)
     for (int index = 0; index < num_tiles; ++index) {
-      const Tile tile = tile_at(tiles, index, f);
+      const Tile tile = splat::tile_at(tiles, index, f);
       const int begin = tiles.offsets[index], end = tiles.offsets[index + 1];
       if (begin == end) {  // most tiles of an edge render are empty: write the background
         write_empty_tile(tile, f, C, out);
@@ -130,13 +76,13 @@ void rasterize_forward(const Splats& s, const Frame& f, const TileView& tiles, c
       int active = tile.width * tile.height;
       for (int k = begin; k < end && active > 0; ++k) {
         const int32_t i = tiles.ids[k];
-        const Footprint fp = footprint(s, i, tile);
+        const Footprint fp = splat::footprint(s, i, tile);
         const float* c = s.colors + int64_t(i) * C;
         for (int py = fp.y0; py <= fp.y1; ++py) {
           for (int px = fp.x0; px <= fp.x1; ++px) {
             const int p = (py - tile.y0) * kTileSize + (px - tile.x0);
             PixelHit h;
-            if (done[p] || !hit_pixel(fp, px, py, h)) continue;
+            if (done[p] || !splat::hit_pixel(fp, px, py, h)) continue;
             const float next_T = T[p] * (1.f - h.alpha);
             if (next_T < kEarlyStopT) {
               done[p] = 1;
@@ -171,17 +117,18 @@ void rasterize_forward(const Splats& s, const Frame& f, const TileView& tiles, c
 namespace {
 
 // Walks one tile back to front, recovering each pixel's transmittance before every primitive
-// it used and the colour, depth and alpha composited behind it. `visit(i, fp, h, p, T,
-// behind_color, behind_depth, behind_alpha)` sees each (primitive, pixel) that the forward pass
-// composited, before the "behind" accumulators absorb that primitive.
+// it used and the colour, depth and alpha composited behind it. `visit(i, fp, h, pix, T,
+// behind_color, behind)` sees each (primitive, pixel) that the forward pass composited, before
+// the "behind" accumulators absorb that primitive.
 template <typename Visit>
 void walk_tile_backwards(const Splats& s, const Frame& f, const TileView& tiles, int index,
                          const float* final_T, const int32_t* last, Visit&& visit) {
   const int C = s.channels;
   const int begin = tiles.offsets[index];
   if (begin == tiles.offsets[index + 1]) return;  // nothing was composited here
-  const Tile tile = tile_at(tiles, index, f);
-  float T[kTilePixels], behind_depth[kTilePixels], behind_alpha[kTilePixels];
+  const Tile tile = splat::tile_at(tiles, index, f);
+  float T[kTilePixels];
+  Behind behind[kTilePixels];
   int32_t used[kTilePixels];
   std::vector<float> behind_color(kTilePixels * C);
   int max_used = 0;
@@ -192,28 +139,23 @@ void walk_tile_backwards(const Splats& s, const Frame& f, const TileView& tiles,
       T[p] = final_T[pix];
       used[p] = last[pix];
       max_used = std::max(max_used, used[p]);
-      behind_depth[p] = 0.f;
-      behind_alpha[p] = 0.f;
+      behind[p] = {0.f, 0.f};
       for (int ch = 0; ch < C; ++ch) behind_color[p * C + ch] = f.background ? f.background[ch] : 0.f;
     }
   }
   for (int pos = max_used - 1; pos >= 0; --pos) {
     const int32_t i = tiles.ids[begin + pos];
-    const Footprint fp = footprint(s, i, tile);
+    const Footprint fp = splat::footprint(s, i, tile);
     const float* c = s.colors + int64_t(i) * C;
     for (int py = fp.y0; py <= fp.y1; ++py) {
       for (int px = fp.x0; px <= fp.x1; ++px) {
         const int p = (py - tile.y0) * kTileSize + (px - tile.x0);
         PixelHit h;
-        if (pos >= used[p] || !hit_pixel(fp, px, py, h)) continue;
+        if (pos >= used[p] || !splat::hit_pixel(fp, px, py, h)) continue;
         T[p] /= (1.f - h.alpha);  // transmittance in front of this primitive
         const int64_t pix = int64_t(py) * f.width + px;
-        visit(i, fp, h, pix, T[p], &behind_color[p * C], behind_depth[p], behind_alpha[p]);
-        for (int ch = 0; ch < C; ++ch) {
-          behind_color[p * C + ch] = h.alpha * c[ch] + (1.f - h.alpha) * behind_color[p * C + ch];
-        }
-        behind_depth[p] = h.alpha * s.depths[i] + (1.f - h.alpha) * behind_depth[p];
-        behind_alpha[p] = h.alpha + (1.f - h.alpha) * behind_alpha[p];
+        visit(i, fp, h, pix, T[p], &behind_color[p * C], behind[p]);
+        behind[p].absorb(h.alpha, c, s.depths[i], &behind_color[p * C], C);
       }
     }
   }
@@ -249,37 +191,28 @@ void rasterize_backward(const Splats& s, const Frame& f, const TileView& tiles, 
     for (int index = 0; index < num_tiles; ++index) {
       walk_tile_backwards(s, f, tiles, index, final_T, last,
                           [&](int32_t i, const Footprint& fp, const PixelHit& h, int64_t pix, float T,
-                              const float* behind_color, float behind_depth, float behind_alpha) {
+                              const float* behind_color, const Behind& behind) {
                             float* gi = g + int64_t(i) * per;
                             const float w = h.alpha * T;
                             const float* c = s.colors + int64_t(i) * C;
-                            float g_alpha = 0.f;
-                            for (int ch = 0; ch < C; ++ch) {
-                              const float g_img = go.image[pix * C + ch];
-                              gi[kColors + ch] += w * g_img;
-                              g_alpha += (c[ch] - behind_color[ch]) * T * g_img;
-                            }
+                            const float* g_image = go.image + pix * C;
+                            for (int ch = 0; ch < C; ++ch) gi[kColors + ch] += w * g_image[ch];
                             gi[kDepth] += w * go.depth[pix];
-                            g_alpha += (s.depths[i] - behind_depth) * T * go.depth[pix];
-                            g_alpha += (1.f - behind_alpha) * T * go.alpha[pix];
                             if (h.clamped) return;
-                            float dD_du, dD_dt;
-                            dog_derivatives(h.u, fp.t, h.terms, dD_du, dD_dt);
-                            gi[kOpacity] += g_alpha * h.D;
-                            const float g_D = g_alpha * fp.opacity;
-                            gi[kT] += g_D * dD_dt;
-                            const float g_u = g_D * dD_du;
-                            gi[kA] += g_u * (-h.u * 2.f * fp.inv_2a);  // du/da = -u / a
-                            const float g_q = g_u * fp.inv_2a;
-                            gi[kConicA] += g_q * h.dx * h.dx;
-                            gi[kConicB] += g_q * 2.f * h.dx * h.dy;
-                            gi[kConicC] += g_q * h.dy * h.dy;
-                            const float g_mx = -2.f * g_q * (fp.A * h.dx + fp.B * h.dy);
-                            const float g_my = -2.f * g_q * (fp.B * h.dx + fp.C * h.dy);
-                            gi[kMeanX] += g_mx;
-                            gi[kMeanY] += g_my;
-                            gi[kAbsMeanX] += std::fabs(g_mx);
-                            gi[kAbsMeanY] += std::fabs(g_my);
+                            const float g_alpha =
+                                splat::alpha_gradient(c, s.depths[i], T, behind_color, behind, g_image,
+                                                      go.alpha[pix], go.depth[pix], C);
+                            const splat::FootprintGrad fg = splat::footprint_gradient(fp, h, g_alpha);
+                            gi[kOpacity] += fg.opacity;
+                            gi[kT] += fg.t;
+                            gi[kA] += fg.a;
+                            gi[kConicA] += fg.conic_a;
+                            gi[kConicB] += fg.conic_b;
+                            gi[kConicC] += fg.conic_c;
+                            gi[kMeanX] += fg.mean_x;
+                            gi[kMeanY] += fg.mean_y;
+                            gi[kAbsMeanX] += std::fabs(fg.mean_x);
+                            gi[kAbsMeanY] += std::fabs(fg.mean_y);
                           });
     }
   }
@@ -314,15 +247,10 @@ void rasterize_fisher(const Splats& s, const Frame& f, const TileView& tiles, co
     for (int index = 0; index < num_tiles; ++index) {
       walk_tile_backwards(s, f, tiles, index, final_T, last,
                           [&](int32_t i, const Footprint& fp, const PixelHit& h, int64_t, float T,
-                              const float* behind_color, float, float) {
+                              const float* behind_color, const Behind&) {
                             if (h.clamped) return;  // alpha saturated: the image does not move with D here
-                            const float* c = s.colors + int64_t(i) * C;
-                            float sum = 0.f;
-                            for (int ch = 0; ch < C; ++ch) {
-                              const float dI_dD = (c[ch] - behind_color[ch]) * T * fp.opacity;
-                              sum += dI_dD * dI_dD;
-                            }
-                            g[i] += sum;
+                            g[i] +=
+                                splat::fisher_term(s.colors + int64_t(i) * C, behind_color, T, fp.opacity, C);
                           });
     }
   }
