@@ -1,4 +1,5 @@
-"""The built-in parts' geometry, without rendering: closed meshes, exact curves, seeded sizes."""
+"""The built-in parts' geometry, without rendering: the kernel's closed meshes, exact curves,
+seeded sizes."""
 
 from __future__ import annotations
 
@@ -8,9 +9,9 @@ import pytest
 from edgedog.errors import ConfigError
 from edgedog.groundtruth import GT_SPACING
 from edgedog.metrics import sample_line
+from edgedog.synthetic.designs import DESIGNS
 from edgedog.synthetic.features import Arc, Line, sample_curve
 from edgedog.synthetic.shapes import SHAPES, make_part
-from edgedog.synthetic.triangulate import signed_area, triangulate
 
 
 @pytest.mark.parametrize("name", SHAPES)
@@ -28,7 +29,7 @@ def test_every_part_is_a_closed_outward_mesh_normalised_like_abc(name):
         facet = np.cross(b - a, c - a)
         assert np.einsum("ij,ij->", a, np.cross(b, c)) > 0  # positive volume: normals point out
         facet /= np.linalg.norm(facet, axis=1, keepdims=True)
-        # Corner normals follow their facets (smooth walls within half an arc step).
+        # Corner normals follow their facets (curved faces within half the kernel's angular step).
         assert np.einsum("ti,tki->tk", facet, mesh.normals).min() > np.cos(np.radians(3))
         lo, hi = corners.min(0), corners.max(0)
         assert np.isclose((hi - lo).max(), 1.0) and np.allclose((lo + hi) / 2, 0.5)
@@ -77,20 +78,11 @@ def test_seeds_change_dimensions_and_holes():
     assert {len(h) // 3 for h in holes} <= {2, 3, 4}
 
 
+def test_every_shape_has_a_design_and_parts_are_built_once():
+    assert list(DESIGNS) == list(SHAPES)
+    assert make_part("boss", 5) is make_part("boss", 5)
+
+
 def test_unknown_shape_names_the_choices():
     with pytest.raises(ConfigError, match="unknown shape 'gear'; choose from box, l-bracket"):
         make_part("gear")
-
-
-def test_triangulation_covers_a_non_convex_outline_minus_its_holes():
-    outer = np.array([[0, 0], [4, 0], [4, 1], [1, 1], [1, 3], [0, 3]], float)  # an L
-    angles = np.linspace(0, 2 * np.pi, 40, endpoint=False)
-    circle = np.c_[0.5 + 0.3 * np.cos(angles), 2.2 + 0.3 * np.sin(angles)]
-    square = np.array([[2, 0.3], [2, 0.7], [2.4, 0.7], [2.4, 0.3]], float)  # clockwise on purpose
-    vertices = np.concatenate([outer[::-1], circle, square])  # the outline clockwise too
-    triangles = triangulate(outer[::-1], [circle, square])
-    areas = [signed_area(vertices[t]) for t in triangles]
-    assert min(areas) > 0  # all counter-clockwise, none degenerate
-    expected = signed_area(outer) - signed_area(circle) - abs(signed_area(square))
-    assert np.isclose(sum(areas), expected)
-    assert len(triangles) == len(vertices) + 2 * 2 - 2  # n + 2 holes - 2 for a polygon with holes

@@ -10,6 +10,7 @@
 
 from __future__ import annotations
 
+import functools
 from pathlib import Path
 
 import numpy as np
@@ -20,9 +21,8 @@ from edgedog.errors import InputError
 from edgedog.files import default_cache
 from edgedog.scenes.camera import Camera
 from edgedog.synthetic.exact import EXACT, exact_edge_map
-from edgedog.synthetic.prism import Prism, rectangle
 from edgedog.synthetic.render import Renderer
-from edgedog.synthetic.shapes import Part, assemble, make_part
+from edgedog.synthetic.shapes import Part, make_part
 
 __all__ = ["BOX_MAX", "BOX_MIN", "CORNERS", "EDGES", "box_part", "builtin_scene_path", "ground_truth_points",
            "render_view", "write_box_scene"]
@@ -44,11 +44,14 @@ CORNERS = np.array([[(BOX_MIN, BOX_MAX)[(i >> a) & 1][a] for a in range(3)] for 
 EDGES = sorted({(a, b) for a in range(8) for b in range(a + 1, 8) if bin(a ^ b).count("1") == 1})
 
 
+@functools.cache
 def box_part() -> Part:
-    """The exact box as a part (its 12 edges as feature curves)."""
-    prism = Prism(rectangle(BOX_MIN[0], BOX_MIN[1], BOX_MAX[0], BOX_MAX[1]), BOX_MIN[2], BOX_MAX[2])
+    """The exact box as a part (its 12 edges as feature curves), built once per process."""
+    from edgedog.synthetic.brep import part_from_solid  # the CAD kernel: seconds to import
+    from edgedog.synthetic.designs import box_between
+
     dimensions = dict(zip(("width", "depth", "height"), BOX_MAX - BOX_MIN))
-    return assemble("box", [prism], dimensions, normalise=False)
+    return part_from_solid("box", box_between(BOX_MIN, BOX_MAX), dimensions, normalise=False)
 
 
 def render_view(camera: Camera) -> tuple[np.ndarray, np.ndarray]:

@@ -1,8 +1,9 @@
-"""Exact feature curves of the built-in parts: straight segments and circular arcs in 3D.
+"""Exact feature curves of the parts: straight segments, circular arcs, and any other curve of
+the CAD kernel (ellipses, B-splines) as points it placed densely along the arc length.
 
 Ground truth is sampled from these curves, not from their tessellation, with the ABC
 protocol's rule applied along each curve's arc length: n = floor(length / spacing) samples at
-equal parameter steps, both ends included (for a segment these are `metrics.sample_line`'s).
+equal arc-length steps, both ends included (for a segment these are `metrics.sample_line`'s).
 """
 
 from __future__ import annotations
@@ -12,10 +13,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from edgedog.groundtruth import GT_SPACING
-
-
-def _affine(matrix: np.ndarray, points: np.ndarray) -> np.ndarray:
-    return points @ matrix[:3, :3].T + matrix[:3, 3]
 
 
 @dataclass(frozen=True)
@@ -32,16 +29,6 @@ class Line:
     def at(self, t: np.ndarray) -> np.ndarray:
         """(n,) parameters in [0, 1] -> (n, 3) points."""
         return self.a + np.asarray(t, float)[:, None] * (self.b - self.a)
-
-    def tangent(self, t: np.ndarray) -> np.ndarray:
-        """(n,) parameters -> (n, 3) unit tangents in the direction of increasing t."""
-        direction = (self.b - self.a) / self.length
-        return np.broadcast_to(direction, (len(np.atleast_1d(t)), 3)).copy()
-
-    def transformed(self, matrix: np.ndarray) -> Line:
-        """The curve under a (4, 4) similarity transform."""
-        a, b = _affine(matrix, np.stack([self.a, self.b]))
-        return Line(a, b)
 
     def to_json(self) -> dict:
         return {"type": "line", "a": self.a.tolist(), "b": self.b.tolist()}
@@ -77,23 +64,43 @@ class Arc:
         theta = self._angles(t)[:, None]
         return self.center + np.cos(theta) * self.e1 + np.sin(theta) * self.e2
 
-    def tangent(self, t: np.ndarray) -> np.ndarray:
-        """(n,) parameters -> (n, 3) unit tangents in the direction of increasing t."""
-        theta = self._angles(t)[:, None]
-        sense = np.sign(self.stop - self.start)
-        return sense * (-np.sin(theta) * self.e1 + np.cos(theta) * self.e2) / self.radius
-
-    def transformed(self, matrix: np.ndarray) -> Arc:
-        """The curve under a (4, 4) similarity transform (e1, e2 stay orthogonal and equally long)."""
-        center = _affine(matrix, self.center[None])[0]
-        return Arc(center, matrix[:3, :3] @ self.e1, matrix[:3, :3] @ self.e2, self.start, self.stop)
-
     def to_json(self) -> dict:
         return {"type": "arc", "center": self.center.tolist(), "e1": self.e1.tolist(),
                 "e2": self.e2.tolist(), "start": self.start, "stop": self.stop}
 
 
-Curve = Line | Arc
+@dataclass(frozen=True)
+class Traced:
+    """Any other curve (an ellipse, a B-spline): `points` (n, 3) that the CAD kernel placed at
+    equal arc-length steps, so finely (`edgedog.synthetic.sharp.TRACE_STEP`) that the polyline
+    through them stays within a micrometre of the curve; t runs along the polyline's length.
+
+    Attributes:
+        kind: the kernel's curve type, lower case ("ellipse", "bspline", ...).
+    """
+
+    kind: str
+    points: np.ndarray
+
+    @property
+    def length(self) -> float:
+        return float(self._lengths()[-1])
+
+    def _lengths(self) -> np.ndarray:
+        """(n,) arc length from the first point to each point."""
+        return np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(self.points, axis=0), axis=1))]
+
+    def at(self, t: np.ndarray) -> np.ndarray:
+        """(n,) parameters in [0, 1] -> (n, 3) points, t proportional to the arc length."""
+        lengths = self._lengths()
+        s = np.asarray(t, float) * lengths[-1]
+        return np.stack([np.interp(s, lengths, self.points[:, k]) for k in range(3)], axis=1)
+
+    def to_json(self) -> dict:
+        return {"type": self.kind, "points": self.points.tolist()}
+
+
+Curve = Line | Arc | Traced
 
 
 def sample_curve(curve: Curve, spacing: float = GT_SPACING) -> np.ndarray:

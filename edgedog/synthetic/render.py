@@ -18,7 +18,7 @@ from edgedog.renderer.gl.camera import gl_projection
 from edgedog.renderer.gl.context import GLUnavailableError as ContextError
 from edgedog.renderer.gl.context import offscreen_context
 from edgedog.scenes.camera import Camera
-from edgedog.synthetic.prism import Mesh
+from edgedog.synthetic.mesh import Mesh
 
 LIGHTS = np.array([[0.4, 0.5, 0.75], [-0.6, -0.3, 0.2]])  # world directions towards the lights
 AMBIENT, DIFFUSE = 0.15, 0.75 / 1.3
