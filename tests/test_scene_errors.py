@@ -408,12 +408,21 @@ def test_colmap_hand_made_model_loads(tmp_path):
     assert scene.format == "colmap" and len(scene) == 1
 
 
-def test_colmap_distorted_camera(tmp_path):
-    params = [20.0, 20.0, 8.0, 8.0, -0.1, 0.01, 0.0, 0.0]  # fx fy cx cy k1 k2 p1 p2
+def test_colmap_camera_model_opencv_cannot_undistort(tmp_path):
+    # OPENCV and the other models OpenCV undistorts load: tests/test_distortion.py.
+    params = [20.0, 20.0, 8.0, 8.0, 0.01]  # fx fy cx cy omega
+    root = make_colmap(tmp_path / "scene", model="FOV", params=params)
+    with pytest.raises(InputError) as info:
+        load_scene(root)
+    assert_one_line(info.value, root / "sparse" / "0", "FOV", "undistort")
+
+
+def test_colmap_nan_distortion(tmp_path):
+    params = [20.0, 20.0, 8.0, 8.0, float("nan"), 0.01, 0.0, 0.0]  # fx fy cx cy k1 k2 p1 p2
     root = make_colmap(tmp_path / "scene", model="OPENCV", params=params)
     with pytest.raises(InputError) as info:
         load_scene(root)
-    assert_one_line(info.value, root / "sparse" / "0", "OPENCV", "undistort")
+    assert_one_line(info.value, root / "sparse" / "0", "unreadable COLMAP model")  # pycolmap checks
 
 
 @pytest.mark.parametrize(

@@ -23,17 +23,17 @@ from tqdm import tqdm
 
 from edgedog.edges.detector import EdgeDetector
 from edgedog.errors import InputError
-from edgedog.files import atomic_write, atomic_write_json, default_cache
+from edgedog.files import atomic_write, atomic_write_json
 from edgedog.scenes import Scene
 from edgedog.scenes.fingerprint import scene_fingerprint
 from edgedog.scenes.images import Background, to_u8
+from edgedog.scenes.undistort import scene_cache
 
 
 def cache_root(scene: Scene) -> Path:
     """The user cache's folder for `scene`'s maps: one per scene folder (named after it and a
-    digest of its path), whatever its permissions."""
-    digest = hashlib.sha1(str(scene.root).encode()).hexdigest()[:12]
-    return default_cache() / "edges" / f"{scene.root.name}-{digest}"
+    digest of its path), whatever its permissions; its undistorted files live there too."""
+    return scene_cache(scene.root)
 
 
 def content_key(fingerprint: str, background: Background) -> str:

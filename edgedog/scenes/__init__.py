@@ -1,7 +1,7 @@
 """Multi-view scenes: one `Scene` type and loaders auto-detected from the folder's contents.
 
-Formats: NeRF/Blender (`transforms_train.json`, ABC-NEF), EMAP (`meta_data.json`), NeuS/IDR
-(`cameras_sphere.npz`, DTU), COLMAP (`sparse/0/`).
+Formats: NeRF/Blender (`transforms_train.json`, ABC-NEF), nerfstudio (`transforms.json`), EMAP
+(`meta_data.json`), NeuS/IDR (`cameras_sphere.npz`, DTU), COLMAP (`sparse/0/`).
 """
 
 from __future__ import annotations
@@ -17,13 +17,16 @@ from edgedog.scenes.common import ALLOW_OUTSIDE, confine_files, inspect_images, 
 from edgedog.scenes.emap import is_emap, load_emap
 from edgedog.scenes.images import Background
 from edgedog.scenes.nerf import is_nerf, load_nerf
+from edgedog.scenes.nerfstudio import is_nerfstudio, load_nerfstudio
 from edgedog.scenes.neus import is_neus, load_neus
 from edgedog.scenes.scene import Scene, View
+from edgedog.scenes.undistort import undistort_scene
 
 # Checked in this order; the first whose marker file is present loads the folder.
 FORMATS = (
     ("emap", is_emap, load_emap),
     ("nerf", is_nerf, load_nerf),
+    ("nerfstudio", is_nerfstudio, load_nerfstudio),
     ("neus", is_neus, load_neus),
     ("colmap", is_colmap, load_colmap),
 )
@@ -40,8 +43,8 @@ def detect_format(root: Path) -> str:
             return name
     raise InputError(
         root,
-        "not a scene folder: expected transforms_train.json (NeRF/Blender), meta_data.json "
-        "(EMAP), cameras_sphere.npz (NeuS/DTU) or a COLMAP sparse/0 model",
+        "not a scene folder: expected transforms_train.json (NeRF/Blender), transforms.json "
+        "(nerfstudio), meta_data.json (EMAP), cameras_sphere.npz (NeuS/DTU) or a COLMAP sparse/0 model",
     )
 
 
@@ -54,6 +57,7 @@ def load_scene(path: str | Path, downscale: int = 1, background: Background = (0
     """Load a scene folder of any supported format, and check its files before anything uses
     them: every image, mask and edge map inside the folder (unless $EDGEDOG_ALLOW_OUTSIDE_FILES
     is set), every image present and of its camera's size (from the headers), unique view names.
+    Views of distorted cameras are undistorted (once, into the user cache: `undistort_scene`).
 
     Args:
         path: the scene folder (a symlink to one is fine).
@@ -72,7 +76,7 @@ def load_scene(path: str | Path, downscale: int = 1, background: Background = (0
     scene = loader(root)
     confine_files(scene)
     _check_names(scene)
-    scene = inspect_images(scene)
+    scene = undistort_scene(inspect_images(scene))
     _check_downscale(scene, int(downscale), setting)
     return dataclasses.replace(scene, downscale=int(downscale), background=background)
 

@@ -1,7 +1,9 @@
 """COLMAP scenes: a sparse model (`sparse/0/` or `sparse/`, .bin or .txt) read with pycolmap,
 and the photos in `images/`. The SfM points are kept for initialisation.
 
-Only undistorted pinhole cameras are accepted: run `colmap image_undistorter` first.
+Pinhole cameras (PINHOLE, SIMPLE_PINHOLE) load as they are; distorted ones (SIMPLE_RADIAL,
+RADIAL, OPENCV, FULL_OPENCV, OPENCV_FISHEYE) in OpenCV's terms, undistorted when the scene loads
+(`edgedog.scenes.undistort`). Other models are refused: run `colmap image_undistorter` first.
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ from edgedog.scenes.common import (
     edge_maps_for,
     metadata_errors,
 )
+from edgedog.scenes.distortion import Distortion
 from edgedog.scenes.scene import Scene, View
 
 MODEL_FILES = ("cameras", "images", "points3D")
@@ -54,22 +57,41 @@ def is_colmap(root: Path) -> bool:
     return sparse_folder(root) is not None
 
 
-def _pinhole(camera, model_path: Path) -> np.ndarray:
-    """pycolmap camera -> (3, 3) K in edgedog's convention, or an InputError for distortion."""
-    name, params = camera.model.name, np.asarray(camera.params, dtype=np.float64)
-    if name == "PINHOLE":
-        fx, fy, cx, cy = params
-    elif name == "SIMPLE_PINHOLE":
-        fx, cx, cy = params
-        fy = fx
-    else:
-        raise InputError(
-            model_path,
-            f"camera {camera.camera_id} uses the distorted model {name}; undistort the images "
-            "first (colmap image_undistorter --output_type COLMAP) and load the undistorted folder",
-        )
+# COLMAP model -> (OpenCV's distortion model or None, the parameters' names in COLMAP's order).
+CAMERA_MODELS = {
+    "SIMPLE_PINHOLE": (None, ("f", "cx", "cy")),
+    "PINHOLE": (None, ("fx", "fy", "cx", "cy")),
+    "SIMPLE_RADIAL": ("opencv", ("f", "cx", "cy", "k1")),
+    "RADIAL": ("opencv", ("f", "cx", "cy", "k1", "k2")),
+    "OPENCV": ("opencv", ("fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2")),
+    "FULL_OPENCV": ("opencv", ("fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6")),
+    "OPENCV_FISHEYE": ("fisheye", ("fx", "fy", "cx", "cy", "k1", "k2", "k3", "k4")),
+}
+OPENCV_ORDER = {"opencv": ("k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6"),
+                "fisheye": ("k1", "k2", "k3", "k4")}
+"""The coefficients of OpenCV's distortion vector of each model, in its order (those a COLMAP
+model lacks are zero)."""
+
+
+def _intrinsics(camera, model_path: Path) -> tuple[np.ndarray, Distortion | None]:
+    """pycolmap camera -> ((3, 3) K in edgedog's convention, its distortion or None), or an
+    InputError for a model OpenCV cannot undistort (pycolmap refuses parameters that are not
+    finite when it reads the model)."""
+    name = camera.model.name
+    if name not in CAMERA_MODELS:
+        raise InputError(model_path, f"camera {camera.camera_id} uses the model {name}, which edgedog cannot "
+                                     f"undistort ({', '.join(CAMERA_MODELS)}); undistort the images first "
+                                     "(colmap image_undistorter --output_type COLMAP) and load that folder")
+    model, names = CAMERA_MODELS[name]
+    values = dict(zip(names, map(float, camera.params)))
+    fx, fy = values.get("fx", values.get("f")), values.get("fy", values.get("f"))
     # COLMAP puts the centre of the top-left pixel at (0.5, 0.5); edgedog puts it at (0, 0).
-    return intrinsics(fx, fy, cx - 0.5, cy - 0.5)
+    K = intrinsics(fx, fy, values["cx"] - 0.5, values["cy"] - 0.5)
+    if model is None:
+        return K, None
+    order = OPENCV_ORDER[model][:8 if "k5" in values else 4]  # OpenCV takes 4, 5 or 8
+    distortion = Distortion(model, tuple(values.get(k, 0.0) for k in order))
+    return K, None if distortion.is_identity else distortion
 
 
 def load_colmap(root: Path) -> Scene:
@@ -104,14 +126,14 @@ def _view(model, image_id: int, model_path: Path, image_folder: Path, folders: d
     """The view of one registered image of a pycolmap.Reconstruction."""
     image = model.image(image_id)
     camera = model.camera(image.camera_id)
-    K = _pinhole(camera, model_path)
+    K, distortion = _intrinsics(camera, model_path)
     w2c = np.eye(4)
     w2c[:3, :4] = image.cam_from_world().matrix()
     where = f"image {image.name}"
     cam = checked_camera(K, w2c, camera.width, camera.height, model_path, where)
     # The name keeps the image's sub-folder: rigs store cam1/0001.png beside cam2/0001.png.
     name = Path(image.name).with_suffix("").as_posix()
-    return View(name, cam, image_folder / image.name, edge_maps_for(name, folders))
+    return View(name, cam, image_folder / image.name, edge_maps_for(name, folders), distortion=distortion)
 
 
 def points_bounds(points: np.ndarray, views: list[View], padding: float = 0.1) -> np.ndarray:

@@ -11,6 +11,7 @@ import numpy as np
 
 from edgedog.errors import InputError
 from edgedog.scenes.camera import Camera
+from edgedog.scenes.distortion import Distortion
 from edgedog.scenes.images import Background, as_gray, as_rgb, read_raw, resize_to, to_unit_float
 
 
@@ -26,6 +27,8 @@ class View:
         mask_path: object mask file, if the dataset has one (RGBA images carry their own).
         alpha: whether the image has an alpha channel (its mask), as its header says; None when
             not known before the image is read.
+        distortion: the lens distortion of the files on disk, with `camera` their distorted
+            camera's intrinsics; None for a pinhole. `load_scene` undistorts such views.
     """
 
     name: str
@@ -34,6 +37,7 @@ class View:
     edge_paths: Mapping[str, Path] = field(default_factory=dict)
     mask_path: Path | None = None
     alpha: bool | None = None
+    distortion: Distortion | None = None
 
     @property
     def has_mask(self) -> bool:
@@ -46,7 +50,7 @@ class Scene:
 
     Attributes:
         root: the folder the scene was loaded from.
-        format: "nerf" | "emap" | "neus" | "colmap".
+        format: "nerf" | "nerfstudio" | "emap" | "neus" | "colmap".
         views: the training views, cameras at file resolution.
         bounds: (2, 3) axis-aligned box [min, max] that holds the object, world units.
         world_to_gt: (4, 4) transform from the world frame to the ground-truth frame.
