@@ -83,6 +83,8 @@ def read_obj_vertices(path: Path) -> np.ndarray:
         lines = path.read_text(encoding="utf-8").splitlines()
     except FileNotFoundError:
         raise InputError(path, "file not found") from None
+    except UnicodeDecodeError:
+        raise InputError(path, "not a text OBJ file") from None
     rows = [line.split()[1:4] for line in lines if line.startswith("v ")]
     try:
         vertices = np.array(rows, dtype=np.float64)
@@ -135,7 +137,25 @@ def abc_points_from_cad(obj: Path, features: Path, stats: Path, scan_id: str) ->
     Returns:
         (N, 3) float64 points in the ground-truth frame.
     """
-    vertices = read_obj_vertices(obj)
+    polylines = sharp_polylines(read_obj_vertices(obj), features, obj)
+    check_sample_count(polylines, features)
+    samples = [resample_polyline(p) for p in polylines]
+    scale, offset = normalisation(stats, scan_id)
+    return np.concatenate(samples) * scale + offset
+
+
+def check_sample_count(polylines: list[np.ndarray], features: Path) -> None:
+    """InputError when the (M, 3) polylines of `features` would be sampled into more than
+    MAX_SAMPLES points: no ABC object's curves are that long."""
+    count = sum(sample_count(np.linalg.norm(np.diff(p, axis=0), axis=1)) for p in polylines)
+    if count > MAX_SAMPLES:
+        raise InputError(features, f"its sharp curves would be sampled into {count:.3g} points, more than "
+                                   f"{MAX_SAMPLES:,}: not an ABC object's curves")
+
+
+def sharp_polylines(vertices: np.ndarray, features: Path, obj: Path) -> list[np.ndarray]:
+    """The sharp curves of an ABC features file, each as its (M, 3) polyline through `vertices`
+    (V, 3), the vertices of the mesh file `obj` it indexes."""
     try:
         curves = yaml.load(features.read_text(), Loader=yaml.CSafeLoader)["curves"]
     except FileNotFoundError:
@@ -145,13 +165,7 @@ def abc_points_from_cad(obj: Path, features: Path, stats: Path, scan_id: str) ->
     polylines = [vertices[indices] for indices in _sharp_curves(curves, len(vertices), features, obj)]
     if not polylines:
         raise InputError(features, "no sharp feature curves")
-    count = sum(sample_count(np.linalg.norm(np.diff(p, axis=0), axis=1)) for p in polylines)
-    if count > MAX_SAMPLES:
-        raise InputError(features, f"its sharp curves would be sampled into {count:.3g} points, more than "
-                                   f"{MAX_SAMPLES:,}: not an ABC object's curves")
-    samples = [resample_polyline(p) for p in polylines]
-    scale, offset = normalisation(stats, scan_id)
-    return np.concatenate(samples) * scale + offset
+    return polylines
 
 
 def _sharp_curves(curves, vertex_count: int, features: Path, obj: Path) -> list[np.ndarray]:

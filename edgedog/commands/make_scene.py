@@ -1,5 +1,6 @@
-"""`edgedog make-scene --shape NAME | --cad FILE --out DIR`: a built-in CAD part, or any STEP or BREP
-file, as an ABC-NEF-style scene with its exact sharp edges as ground truth."""
+"""`edgedog make-scene --shape NAME | --cad FILE | --abc MESH FEATURES --out DIR`: a built-in CAD part,
+any STEP or BREP file, or an ABC object as ABC distributes it, as an ABC-NEF-style scene with its
+exact sharp edges as ground truth."""
 
 from __future__ import annotations
 
@@ -32,6 +33,9 @@ def add_parser(subparsers) -> None:
     part.add_argument("--shape", choices=list(SHAPES), metavar="NAME", help="a built-in part (see below)")
     part.add_argument("--cad", type=Path, metavar="FILE",
                       help="a STEP (.step, .stp) or BREP (.brep) file holding one part's closed solid(s)")
+    part.add_argument("--abc", type=Path, nargs=2, metavar=("MESH", "FEATURES"),
+                      help="an ABC object: its triangle mesh (.obj) and features file (.yml); ground "
+                           "truth: its sharp curves by the ABC protocol")
     parser.add_argument("--unit", default=None, metavar="UNIT",
                         help="length unit (mm, cm, m or in) of a --cad file that declares none (BREP "
                              "files, unit-less STEP files)")
@@ -98,6 +102,10 @@ def run(args: argparse.Namespace) -> None:
         from edgedog.synthetic.cad_file import cad_part  # the CAD kernel reads the file
 
         part, made = cad_part(args.cad, args.unit), str(args.cad)
+    elif args.abc is not None:
+        from edgedog.synthetic.abc_file import abc_part
+
+        part, made = abc_part(*args.abc), str(args.abc[0])
     else:
         part, made = make_part(args.shape, args.seed), f"{args.shape} (seed {args.seed})"
     folder = write_scene(args.out, part, args.views, args.size, seed=args.seed, detector=args.detector,

@@ -30,7 +30,9 @@ class Part:
             (1 = 1000 mm).
         mesh: the kernel's triangulation of its faces.
         curves: its sharp edges (`edgedog.synthetic.sharp`), exact.
-        solid: the kernel's solid (a build123d Shape) they come from.
+        solid: the kernel's solid (a build123d Shape) they come from; None for a mesh.
+        spacing: the ground truth's sampling step along the curves: GT_SPACING, except for an
+            ABC object, whose protocol samples every 0.005 of its raw units (`edgedog.synthetic.abc_file`).
     """
 
     name: str
@@ -38,10 +40,11 @@ class Part:
     mesh: Mesh
     curves: tuple[Curve, ...]
     solid: object
+    spacing: float = GT_SPACING
 
-    def ground_truth(self, spacing: float = GT_SPACING) -> np.ndarray:
+    def ground_truth(self) -> np.ndarray:
         """(N, 3) the curves sampled by the ABC protocol."""
-        return sample_curves(self.curves, spacing)
+        return sample_curves(self.curves, self.spacing)
 
 
 SHAPES = {
