@@ -4,9 +4,10 @@ The ops `torch.ops.edgedog.*` are declared once, in csrc/bindings.cpp, with the 
 these wrappers and `_torch_ref` share: per-primitive tensors as the projection returns them
 (means2d, conics, depths, extents), the activated parameters (opacity, a, t, support), the
 colours, then the tiles and the frame. Each device registers kernels for the ops (the C++ CPU
-kernels today) and torch's dispatcher runs those of the tensors' device, so nothing here names
-a device. The autograd Functions save what their backward passes need with
-`ctx.save_for_backward` and return None for inputs that need no gradient.
+kernels, and the CUDA kernels in a CUDA build) and torch's dispatcher runs those of the tensors'
+device, so nothing here names a device but `resolve_device`, which picks one for a setting.
+The autograd Functions save what their backward passes need with `ctx.save_for_backward` and
+return None for inputs that need no gradient.
 """
 
 from __future__ import annotations
@@ -16,6 +17,8 @@ import functools
 import torch
 from edgedog.renderer.extension import load_extension
 from edgedog.renderer.primitives import RasterCamera
+
+from edgedog.errors import ConfigError
 
 OPS = ("project_forward", "project_backward", "tile_lists", "rasterize_forward", "rasterize_backward",
        "rasterize_fisher")
@@ -35,6 +38,28 @@ def kernel_devices() -> tuple[str, ...]:
     return tuple(device for device in present if all(
         getattr(torch.ops.edgedog, name).default.has_kernel_for_dispatch_key(
             getattr(torch.DispatchKey, device.upper())) for name in OPS))
+
+
+def resolve_device(wanted: str) -> torch.device:
+    """The device to compute on for a setting `wanted`: "cpu", "cuda", or "auto" (CUDA when this
+    machine has a GPU and the extension was built with its kernels, else the CPU).
+
+    Raises:
+        ConfigError: "cuda" where it has no kernels (saying why).
+    """
+    if wanted == "auto":
+        wanted = "cuda" if "cuda" in kernel_devices() else "cpu"
+    elif wanted == "cuda" and "cuda" not in kernel_devices():
+        why = ("torch sees no GPU" if not torch.cuda.is_available() else
+               "the extension was built without CUDA (rebuild with a CUDA torch and toolkit: make build)")
+        raise ConfigError(f"device 'cuda' asked for, but {why}")
+    # With its index, as tensors report theirs (torch.device("cuda") != torch.device("cuda:0")).
+    return torch.device("cuda", torch.cuda.current_device()) if wanted == "cuda" else torch.device(wanted)
+
+
+def device_name(device: torch.device) -> str:
+    """`device` for a report: 'cpu', or 'cuda' with the GPU's name."""
+    return f"cuda ({torch.cuda.get_device_name(device)})" if device.type == "cuda" else device.type
 
 
 def _ops(device: torch.device):
@@ -83,13 +108,14 @@ def project(means, scales, quats, support_q, camera: RasterCamera, eps2d: float)
     Args:
         means: (N, 3) world positions; scales: (N, 3) positive axis lengths; quats: (N, 4)
             (w, x, y, z), any norm; support_q: (N,) the footprint's support as a squared
-            Mahalanobis radius (no gradient); camera: moved to the means' device;
+            Mahalanobis radius (no gradient); camera: read on the host;
             eps2d: dilation of the 2D covariance in pixels^2.
     Returns (float32): means2d (N, 2) pixels, conics (N, 3), depths (N,) (0 when culled),
         extents (N, 2) half-widths of the support ellipse (0 when culled), valid (N,) bool;
         extents and valid carry no gradient.
     """
-    cam = camera.to(means.device)
+    # The kernels read the camera on the host: it stays there, whatever the means' device.
+    cam = camera.to("cpu")
     return _Project.apply(means, scales, quats, support_q, cam.K, cam.w2c, cam.width, cam.height, cam.near,
                           eps2d)
 

@@ -34,7 +34,7 @@ def duplicate(max_primitives: int) -> tuple[EdgeModel, EdgeModel, Optimizers, li
         tensor.grad = torch.ones_like(tensor)
     optimizers.step()
     strategy = DensityStrategy(config, RasterConfig())
-    state = strategy.initial_state(N)
+    state = strategy.initial_state(N, torch.device("cpu"))
     state.absgrad = ABSGRAD.clone()
     events = strategy.at_epoch_end(0, model, optimizers, state, views=None, generator=g, keep_ratio=1.0)
     assert torch.equal(state.absgrad, torch.zeros(len(model)))  # the signal restarts after a change

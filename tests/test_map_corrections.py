@@ -59,7 +59,7 @@ def test_a_faint_thin_line_keeps_its_edge_pixels_when_shifted_by_a_fraction_of_a
 def test_the_learned_shift_finds_a_known_offset():
     line = torch.from_numpy(vertical_line(x=20.0))
     render = torch.from_numpy(shift_edge_map(vertical_line(x=20.0), -0.8, 0.0))  # where the truth is
-    learned = LearnedShift(tiny_config(lr_map_shift=0.02, map_shift_from_epoch=0))
+    learned = LearnedShift(tiny_config(lr_map_shift=0.02, map_shift_from_epoch=0), torch.device("cpu"))
     for _ in range(300):
         loss = (learned.target(line, epoch=0) - render).abs().mean()
         loss.backward()

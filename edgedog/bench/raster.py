@@ -1,4 +1,5 @@
-"""`edgedog bench raster`: speed of the rasterizer's C++ path against the torch reference.
+"""`edgedog bench raster`: speed of the rasterizer's kernels (C++ on the CPU, or CUDA) against
+the torch reference (on the CPU).
 
 The scene is ABC-like: thin primitives laid along the straight edges and circles of a CAD part
 in [0, 1]^3 (a box with a circular hole and a boss), viewed from the ABC-NEF camera sphere.
@@ -17,6 +18,7 @@ import torch
 from edgedog.builtin.scene import CORNERS, EDGES
 from edgedog.renderer.config import RasterConfig
 from edgedog.renderer.extension import load_extension
+from edgedog.renderer.ops import device_name, resolve_device
 from edgedog.renderer.primitives import Primitives, RasterCamera
 from edgedog.renderer.rasterize import RenderOutput, fisher_information, rasterize
 from edgedog.synthetic.cameras import orbit_cameras
@@ -30,10 +32,11 @@ class RasterBenchConfig:
     """Attributes:
     primitives: number of primitives.
     size: image width and height in pixels.
-    views: C++ views timed (each: forward, backward, Fisher).
-    reference_views: views timed with the torch reference (it is slow).
+    views: views timed with the kernels (each: forward, backward, Fisher).
+    reference_views: views timed with the torch reference (it is slow), on the CPU.
     kernel: "dog" or "gaussian".
     seed: random seed of the scene.
+    device: where the kernels run: "cpu", "cuda" or "auto" (CUDA when there are kernels for it).
     """
 
     primitives: int = 20000
@@ -42,6 +45,7 @@ class RasterBenchConfig:
     reference_views: int = 1
     kernel: str = "dog"
     seed: int = 0
+    device: str = "auto"
 
 
 def _curves() -> list[np.ndarray]:
@@ -89,13 +93,20 @@ def abc_like_primitives(n: int, seed: int = 0) -> Primitives:
     )
 
 
-def _with_dtype(prims: Primitives, dtype) -> Primitives:
+def _moved(prims: Primitives, device: torch.device) -> Primitives:
     return Primitives(
         *(
-            getattr(prims, f).detach().to(dtype).requires_grad_(getattr(prims, f).requires_grad)
+            getattr(prims, f).detach().to(device).requires_grad_(getattr(prims, f).requires_grad)
             for f in ("means", "log_scales", "quats", "opacity_logits", "k_raw", "colors")
         )
     )
+
+
+def _clock(device: torch.device) -> float:
+    """The host's clock once the device's queued work is done (kernels run asynchronously)."""
+    if device.type == "cuda":
+        torch.cuda.synchronize(device)
+    return time.perf_counter()
 
 
 def _evaluations(out: RenderOutput, prims: Primitives, camera: RasterCamera, config: RasterConfig) -> int:
@@ -119,18 +130,21 @@ def _time_view(
 ) -> tuple[float, float, RenderOutput]:
     for tensor in (prims.means, prims.log_scales, prims.quats, prims.opacity_logits, prims.k_raw):
         tensor.grad = None
-    start = time.perf_counter()
+    device = prims.means.device
+    cotangent = torch.randn((camera.height, camera.width, 1), generator=generator).to(device)
+    start = _clock(device)
     out = rasterize(prims, camera, config)
-    forward = time.perf_counter() - start
-    cotangent = torch.randn(out.image.shape, generator=generator, dtype=out.image.dtype)
-    start = time.perf_counter()
+    forward = _clock(device) - start
+    start = _clock(device)
     out.image.backward(cotangent)
-    return forward, time.perf_counter() - start, out
+    return forward, _clock(device) - start, out
 
 
 def run(cfg: RasterBenchConfig) -> dict:
-    """Time the C++ path on `views` views and the reference on `reference_views`; JSON-ready."""
-    prims = abc_like_primitives(cfg.primitives, cfg.seed)
+    """Time the kernels on `views` views and the reference on `reference_views`; JSON-ready."""
+    device = resolve_device(cfg.device)
+    host_prims = abc_like_primitives(cfg.primitives, cfg.seed)
+    prims = _moved(host_prims, device)
     cameras = [RasterCamera.from_camera(c) for c in orbit_cameras(cfg.views, cfg.size)]
     config = RasterConfig(kernel=cfg.kernel)
     generator = torch.Generator().manual_seed(cfg.seed)
@@ -142,12 +156,12 @@ def run(cfg: RasterBenchConfig) -> dict:
         backward.append(b)
         evaluations += _evaluations(out, prims, camera, config)
         visible.append(int(out.visible.sum()))
-    start = time.perf_counter()
+    start = _clock(device)
     fisher_information(prims, cameras, config)
-    fisher = (time.perf_counter() - start) / len(cameras)
+    fisher = (_clock(device) - start) / len(cameras)
 
     ref_config = RasterConfig(kernel=cfg.kernel, backend="torch")
-    ref_prims = _with_dtype(prims, torch.float32)
+    ref_prims = _moved(host_prims, torch.device("cpu"))
     ref_forward, ref_backward = [], []
     for camera in cameras[: cfg.reference_views]:
         f, b, _ = _time_view(ref_prims, camera, ref_config, generator)
@@ -158,7 +172,7 @@ def run(cfg: RasterBenchConfig) -> dict:
     ref_fisher = time.perf_counter() - start
 
     ms = lambda seconds: round(1000 * float(np.mean(seconds)), 3)  # noqa: E731
-    cpp = {
+    kernels = {
         "forward_ms": ms(forward),
         "backward_ms": ms(backward),
         "forward_backward_ms": ms(np.add(forward, backward)),
@@ -179,12 +193,13 @@ def run(cfg: RasterBenchConfig) -> dict:
             "threads": torch.get_num_threads(),
             "torch": torch.__version__,
             "extension": load_extension().build_info(),
+            "device": device_name(device),
         },
         "visible_primitives_per_view": round(float(np.mean(visible)), 1),
-        "cpp": cpp,
+        "kernels": kernels,
         "torch_reference": reference,
         "speedup": {
-            key: round(reference[key] / cpp[key], 1)
+            key: round(reference[key] / kernels[key], 1)
             for key in ("forward_ms", "backward_ms", "forward_backward_ms", "fisher_ms")
         },
         "primitive_pixel_evaluations_per_s": round(evaluations / max(sum(forward), 1e-9)),
@@ -193,10 +208,11 @@ def run(cfg: RasterBenchConfig) -> dict:
 
 
 def summary(result: dict) -> str:
-    cpp, ref, speed = result["cpp"], result["torch_reference"], result["speedup"]
+    ours, ref, speed = result["kernels"], result["torch_reference"], result["speedup"]
     return (
-        f"C++: forward {cpp['forward_ms']} ms, backward {cpp['backward_ms']} ms, "
-        f"Fisher {cpp['fisher_ms']} ms per view; torch reference: forward {ref['forward_ms']} ms, "
+        f"kernels on {result['machine']['device']}: forward {ours['forward_ms']} ms, backward "
+        f"{ours['backward_ms']} ms, Fisher {ours['fisher_ms']} ms per view; torch reference on the cpu: "
+        f"forward {ref['forward_ms']} ms, "
         f"backward {ref['backward_ms']} ms "
         f"(speed-up x{speed['forward_backward_ms']} forward+backward, x{speed['fisher_ms']} Fisher)"
     )

@@ -27,6 +27,9 @@ def add_parser(subparsers) -> None:
                         help="override a setting of edgedog.train.config.TrainConfig (repeatable): KEY "
                              "is SECTION.FIELD (loss.weighting=exp), or a field one section has "
                              "(epochs=200)")
+    parser.add_argument("--device", choices=("auto", "cpu", "cuda"), default=None,
+                        help="where training computes (the setting run.device; default auto: CUDA when "
+                             "the extension was built with it and torch sees a GPU, else the CPU)")
     parser.add_argument("--layers", default=None, metavar="L0,L1,...",
                         help="multi-granularity: train these levels bottom up, each layer fitted to "
                              "its own maps with the layers below fixed (RUN/L0, RUN/L1, ...), then "
@@ -63,16 +66,22 @@ def run(args: argparse.Namespace) -> None:
 
 
 def _config(args: argparse.Namespace):
+    """The run's settings from --preset, --set and --device; a device this machine cannot compute
+    on is refused here, before anything is written."""
+    from edgedog.renderer.ops import resolve_device
     from edgedog.train.config import preset, with_overrides
 
-    return with_overrides(preset(args.preset or DEFAULT_PRESET), args.overrides)
+    device = [] if args.device is None else [f"run.device={args.device}"]
+    config = with_overrides(preset(args.preset or DEFAULT_PRESET), [*args.overrides, *device])
+    resolve_device(config.run.device)
+    return config
 
 
 def reject_settings_on_resume(args: argparse.Namespace) -> None:
     """A resumed run continues with the settings it was started with; an option that would change
     them is refused rather than ignored."""
     given = [option for option, value in (("--preset", args.preset), ("--set", args.overrides),
-                                          ("--level", args.levels)) if value]
+                                          ("--device", args.device), ("--level", args.levels)) if value]
     if given:
         raise InputError(args.out, f"--resume continues the run with its own settings; {' and '.join(given)} "
                                    "cannot change them (start a new run with another --out)")

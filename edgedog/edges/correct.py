@@ -54,8 +54,9 @@ def warp_target(target: torch.Tensor, shift: torch.Tensor) -> torch.Tensor:
     shift = shift.to(target.dtype)
     # align_corners=False: -1 and +1 are the outer edges of the border pixels, so the centre of
     # pixel x is at (2x + 1) / W - 1, and a shift of d px is 2d / W in these units.
-    xs = (2 * torch.arange(width, dtype=target.dtype) + 1) / width - 1 - 2 * shift[0] / width
-    ys = (2 * torch.arange(height, dtype=target.dtype) + 1) / height - 1 - 2 * shift[1] / height
+    like = {"dtype": target.dtype, "device": target.device}
+    xs = (2 * torch.arange(width, **like) + 1) / width - 1 - 2 * shift[0] / width
+    ys = (2 * torch.arange(height, **like) + 1) / height - 1 - 2 * shift[1] / height
     grid = torch.stack(torch.broadcast_tensors(xs[None, :], ys[:, None]), dim=-1)  # (H, W, 2) as (x, y)
     grid = grid.expand(maps.shape[0], height, width, 2)
     warped = F.grid_sample(maps, grid, mode="bilinear", padding_mode="zeros", align_corners=False)

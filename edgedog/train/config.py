@@ -278,6 +278,10 @@ class RunSettings(Settings):
     damaged_views: Literal["refuse", "skip"] = "refuse"
     """Views whose image cannot be read (cut short, undecodable): 'refuse' the scene, naming the
     first such file; 'skip' train on the other views (log.json lists the views left out)."""
+    device: Literal["auto", "cpu", "cuda"] = "auto"
+    """Where training computes: 'auto' is CUDA when torch sees a GPU and the extension was built
+    with its kernels, else the CPU. The scores of a run on either agree within the seeds' spread,
+    not to the bit (the CUDA kernels sum gradients with atomics)."""
 
 
 @dataclass(frozen=True)

@@ -37,7 +37,7 @@ class LowerLayers:
 
     Attributes:
         model: their raw parameters, M primitives (they require gradients only when fine-tuned).
-        layers: (M,) int64 layer index of each primitive.
+        layers: (M,) int64 layer index of each primitive, on the host.
     """
 
     model: EdgeModel
@@ -69,8 +69,13 @@ class LowerLayers:
     def below(self, count: int) -> LowerLayers:
         """The primitives of layers 0 .. count - 1 only."""
         keep = self.layers < count
-        tensors = {name: getattr(self.model, name).detach()[keep] for name in GROUPS}
+        rows = keep.to(self.model.device)
+        tensors = {name: getattr(self.model, name).detach()[rows] for name in GROUPS}
         return LowerLayers(EdgeModel(**tensors), self.layers[keep])
+
+    def to(self, device: torch.device) -> LowerLayers:
+        """These layers with their parameters on `device` (the layer indices stay on the host)."""
+        return LowerLayers(self.model.to(device), self.layers)
 
     def to_numpy(self) -> dict[str, np.ndarray]:
         return {**self.model.to_numpy(), "layers": self.layers.numpy().copy()}
@@ -105,7 +110,7 @@ def keep_on_residual(points: InitialPoints, pinholes: list[Camera], residuals: l
     the views that see them. When none does (the layers below already explain the maps), the
     best 1 % are kept so that the layer can still grow where the residual is largest."""
     masks = [residual >= threshold for residual in residuals]
-    share = edge_hit_share(points.positions, pinholes, masks).numpy()
+    share = edge_hit_share(points.positions, pinholes, masks).cpu().numpy()
     keep = share >= min_share
     reason = "on residual edges"
     if not keep.any():

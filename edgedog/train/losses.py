@@ -69,20 +69,22 @@ def edge_and_background_sample(edges: torch.Tensor, pixels: int, generator: torc
         background pixels of a uniform random draw without replacement.
     """
     edges = edges.long()
-    ranks = torch.randperm(pixels - len(edges), generator=generator)[: len(edges)]
+    # Drawn on the host by the run's generator (the same draws on every device), then moved.
+    ranks = torch.randperm(pixels - len(edges), generator=generator)[: len(edges)].to(edges.device)
     # The background pixel of rank k is k plus the edges before it; edge i has edges[i] - i
     # background pixels before it. (No background index list: 5 MB and two nonzero passes per view.)
-    before = edges - torch.arange(len(edges))
+    before = edges - torch.arange(len(edges), device=edges.device)
     return torch.cat([edges, ranks + torch.searchsorted(before, ranks, right=True)])
 
 
 def nearest_neighbours(model: EdgeModel, k: int) -> torch.Tensor:
-    """(N, k) indices of each primitive's k nearest other primitives (by centre)."""
-    points = model.means.detach().numpy()
+    """(N, k) indices of each primitive's k nearest other primitives (by centre), on the model's
+    device (the k-d tree is built on the host)."""
+    points = model.means.detach().cpu().numpy()
     k = min(k, len(points) - 1)
     # The query's threads are torch's: a run given one core (a batch) keeps to one.
     _, index = cKDTree(points).query(points, k=k + 1, workers=torch.get_num_threads())
-    return torch.from_numpy(np.asarray(index)[:, 1:].astype(np.int64))
+    return torch.from_numpy(np.asarray(index)[:, 1:].astype(np.int64)).to(model.device)
 
 
 def direction_loss(model: EdgeModel, neighbours: torch.Tensor) -> torch.Tensor:

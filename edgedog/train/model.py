@@ -64,8 +64,20 @@ class EdgeModel:
     def tensors(self) -> dict[str, torch.Tensor]:
         return {name: getattr(self, name) for name in GROUPS}
 
+    @property
+    def device(self) -> torch.device:
+        return self.means.device
+
+    def to(self, device: torch.device) -> EdgeModel:
+        """This model with its tensors on `device` (the same tensors when already there); leaves
+        that required gradients still do."""
+        if device == self.device:
+            return self
+        return EdgeModel(**{name: tensor.detach().to(device).requires_grad_(tensor.requires_grad)
+                            for name, tensor in self.tensors().items()})
+
     def primitives(self) -> Primitives:
-        return Primitives(**self.tensors(), colors=torch.ones(len(self), 1))
+        return Primitives(**self.tensors(), colors=torch.ones(len(self), 1, device=self.device))
 
     def replace(self, tensors: dict[str, torch.Tensor]) -> None:
         """Swap in new leaf tensors (after pruning or duplication)."""
@@ -76,7 +88,7 @@ class EdgeModel:
         """(N, 3) unit axis of each primitive's largest scale (differentiable in quats, scales)."""
         R = quat_to_rotmat(self.quats)
         largest = self.log_scales.argmax(dim=1)
-        return R[torch.arange(len(self)), :, largest]
+        return R[torch.arange(len(self), device=self.device), :, largest]
 
     def to_numpy(self) -> dict[str, np.ndarray]:
-        return {name: getattr(self, name).detach().numpy().copy() for name in GROUPS}
+        return {name: getattr(self, name).detach().cpu().numpy().copy() for name in GROUPS}

@@ -43,6 +43,11 @@ class ViewSet:
     def __post_init__(self):
         object.__setattr__(self, "edge_pixels", [edge_pixels(mask) for mask in self.edge_masks])
 
+    def to(self, device: torch.device) -> ViewSet:
+        """These views with their maps and masks on `device` (the cameras stay on the host)."""
+        return ViewSet(self.factor, self.pinholes, self.cameras, [t.to(device) for t in self.targets],
+                       [m.to(device) for m in self.edge_masks])
+
 
 def coarse_size(width: int, height: int, factor: int) -> tuple[int, int]:
     """(width, height) of a `width` x `height` view at 1/factor (at least 1 px each way)."""

@@ -36,14 +36,17 @@ class StrategyState:
 def edge_hit_share(points: np.ndarray, pinholes: list[Camera],
                    edge_masks: list[torch.Tensor]) -> torch.Tensor:
     """(N,) share of the views seeing a point (N, 3) in which it lands on an edge pixel of that
-    view's (H, W) bool mask (0 for a point no view sees)."""
-    seen = torch.zeros(len(points))
-    on_edge = torch.zeros(len(points))
+    view's (H, W) bool mask (0 for a point no view sees), on the masks' device."""
+    device = edge_masks[0].device if edge_masks else torch.device("cpu")
+    seen = torch.zeros(len(points), device=device)
+    on_edge = torch.zeros(len(points), device=device)
     for camera, mask in zip(pinholes, edge_masks):
-        pixels, inside = camera.pixels(points)
-        seen += torch.from_numpy(inside).float()
-        hit = torch.zeros(len(points), dtype=torch.bool)
-        hit[inside] = mask[pixels[inside, 1], pixels[inside, 0]]
+        pixels, inside = camera.pixels(points)  # projected on the host, in float64
+        inside_t = torch.from_numpy(inside).to(device)
+        seen += inside_t.float()
+        hit = torch.zeros(len(points), dtype=torch.bool, device=device)
+        rows, cols = (torch.from_numpy(pixels[inside, k]).to(device) for k in (1, 0))
+        hit[inside_t] = mask[rows, cols]
         on_edge += hit.float()
     return on_edge / seen.clamp_min(1)
 
@@ -55,8 +58,8 @@ class DensityStrategy:
         self.settings, self.epochs = config.strategy, config.schedule.epochs
         self.raster = raster
 
-    def initial_state(self, n: int) -> StrategyState:
-        return StrategyState(absgrad=torch.zeros(n))
+    def initial_state(self, n: int, device: torch.device) -> StrategyState:
+        return StrategyState(absgrad=torch.zeros(n, device=device))
 
     def after_backward(self, state: StrategyState, out: RenderOutput, skip: int = 0) -> None:
         """Accumulate the absgrad norm of the view just rendered (EdgeGaussians' duplication signal).
@@ -97,7 +100,7 @@ class DensityStrategy:
         if copies_from is not None:
             moment_source[copies_from:] = -1
         optimizers.remap(model, moment_source)
-        state.absgrad = torch.zeros(len(model))
+        state.absgrad = torch.zeros(len(model), device=model.device)
 
     def _duplicate(self, model, optimizers, state, generator) -> dict:
         grads = state.absgrad
@@ -109,10 +112,12 @@ class DensityStrategy:
         before = len(model)
         copies = chosen.repeat(self.settings.duplicate_copies)
         # Copies keep their source's parameters, start with zero Adam moments, and move by
-        # N(0, noise^2) so that they can spread along the edge.
-        rows = torch.cat([torch.arange(before), copies])
+        # N(0, noise^2) so that they can spread along the edge (drawn on the host: the run's
+        # generator, whatever the device).
+        rows = torch.cat([torch.arange(before, device=model.device), copies])
         noise = torch.zeros(len(rows), 3)
         noise[before:] = torch.randn(len(copies), 3, generator=generator) * self.settings.duplicate_noise
+        noise = noise.to(model.device)
         self._apply(model, optimizers, state, rows, copies_from=before, means_noise=noise)
         return {"event": "duplicate", "before": before, "after": len(model)}
 
@@ -124,7 +129,7 @@ class DensityStrategy:
         return {"event": f"cull_{reason}", "before": before, "after": len(model)}
 
     def _edge_hit_share(self, model: EdgeModel, views: ViewSet) -> torch.Tensor:
-        return edge_hit_share(model.means.detach().double().numpy(), views.pinholes, views.edge_masks)
+        return edge_hit_share(model.means.detach().double().cpu().numpy(), views.pinholes, views.edge_masks)
 
     def _fisher_prune(self, model, optimizers, state, views: ViewSet, keep_ratio: float) -> dict:
         scores = fisher_information(model.primitives(), views.cameras, self.raster)
@@ -132,10 +137,10 @@ class DensityStrategy:
         keep_count = max(1, int(round(keep_ratio * before)))
         order = torch.argsort(scores, descending=True, stable=True)
         kept = torch.sort(order[:keep_count]).values
-        pruned = torch.ones(before, dtype=torch.bool)
+        pruned = torch.ones(before, dtype=torch.bool, device=model.device)
         pruned[kept] = False
-        state_positions = model.means.detach()[pruned].numpy().copy()
+        state_positions = model.means.detach()[pruned].cpu().numpy()
         self._apply(model, optimizers, state, kept)
         state.pruned_positions = state_positions
-        state.fisher = scores[kept].numpy()
+        state.fisher = scores[kept].cpu().numpy()
         return {"event": "fisher_prune", "before": before, "after": len(model), "keep_ratio": keep_ratio}

@@ -134,9 +134,9 @@ class LearnedShift:
     primitives from `maps.shift_from_epoch` on: a dataset's detector offset, estimated from the
     views' agreement (a 2D shift of every view is no 3D motion of the primitives)."""
 
-    def __init__(self, config: TrainConfig):
+    def __init__(self, config: TrainConfig, device: torch.device):
         self.from_epoch = config.maps.shift_from_epoch
-        self.shift = torch.zeros(2, requires_grad=True)
+        self.shift = torch.zeros(2, device=device, requires_grad=True)
         self.adam = torch.optim.Adam([self.shift], lr=config.maps.lr_shift)
 
     def target(self, target: torch.Tensor, epoch: int, factor: int = 1) -> torch.Tensor:

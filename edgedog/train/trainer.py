@@ -25,6 +25,7 @@ from edgedog.files import atomic_write_json
 from edgedog.init import initialize
 from edgedog.primitives import PrimitiveArrays
 from edgedog.renderer.config import RasterConfig
+from edgedog.renderer.ops import device_name, resolve_device
 from edgedog.renderer.primitives import RasterCamera
 from edgedog.renderer.rasterize import rasterize
 from edgedog.scenes import Scene
@@ -97,14 +98,17 @@ class Snapshot:
 
 def _finite_grads(*models: EdgeModel) -> int:
     """Zero non-finite gradient entries (no NaN ever reaches the parameters); returns how many."""
+    grads = [t.grad for model in models for t in model.tensors().values() if t.grad is not None]
+    # Finite sums mean every entry is finite: one pass, no mask, and one read back to the host
+    # (one wait for a GPU) at almost every step.
+    if not grads or bool(torch.isfinite(torch.stack([g.sum() for g in grads])).all()):
+        return 0
     bad = 0
-    for tensor in (t for model in models for t in model.tensors().values()):
-        # A finite sum means every entry is finite: one pass, and no mask, at almost every step.
-        if tensor.grad is not None and not torch.isfinite(tensor.grad.sum()):
-            mask = ~torch.isfinite(tensor.grad)
-            if mask.any():
-                bad += int(mask.sum())
-                tensor.grad[mask] = 0
+    for grad in grads:
+        mask = ~torch.isfinite(grad)
+        if mask.any():
+            bad += int(mask.sum())
+            grad[mask] = 0
     return bad
 
 
@@ -148,6 +152,7 @@ class Trainer:
     def __init__(self, scene: Scene, config: TrainConfig, out: Path, progress: bool = True,
                  lower: LowerLayers | None = None):
         self.scene, self.out, self.progress = scene, Path(out), progress
+        self.device = resolve_device(config.run.device)
         self.raster = RasterConfig(kernel=config.model.kernel, k_activation=config.model.k_activation)
         self.detector = self._edge_maps(config.maps.detector)
         # The settings left to the maps' detector are fixed now: checkpoints and log.json hold them.
@@ -160,10 +165,13 @@ class Trainer:
         if self.silhouette is not None:
             self.silhouette["views_without_mask"] = unreadable
         pinholes = scene.cameras
-        self.views = ViewSet(1, pinholes, [RasterCamera.from_camera(c) for c in pinholes],
-                             [torch.from_numpy(m) for m in maps], [torch.from_numpy(m) for m in masks])
-        self.coarse = coarser(self.views, config.schedule.coarse_downscale)
-        self.learned_shift = LearnedShift(config) if config.maps.correction == "learned" else None
+        fine = ViewSet(1, pinholes, [RasterCamera.from_camera(c) for c in pinholes],
+                       [torch.from_numpy(m) for m in maps], [torch.from_numpy(m) for m in masks])
+        coarse = coarser(fine, config.schedule.coarse_downscale)
+        self.views = fine.to(self.device)
+        self.coarse = self.views if coarse is fine else coarse.to(self.device)
+        self.learned_shift = (LearnedShift(config, self.device) if config.maps.correction == "learned"
+                              else None)
         self.strategy = DensityStrategy(config, self.raster)
         self.controls = Controls(config.strategy.keep_ratio, config.loss.weighting)
         self.generator = torch.Generator().manual_seed(config.run.seed)
@@ -178,7 +186,7 @@ class Trainer:
         if (self.out / CHECKPOINT).exists():
             self._load(self.out / CHECKPOINT)
         else:
-            self.lower = LowerLayers.empty() if lower is None else lower
+            self.lower = (LowerLayers.empty() if lower is None else lower).to(self.device)
             self._bind_lower()
             self._initialise()
 
@@ -201,9 +209,9 @@ class Trainer:
             points = keep_on_residual(points, self.scene.cameras, residuals, c.maps.edge_threshold,
                                       c.layers.residual_min_share)
         self.init_report = {"method": points.method, "points": len(points), **points.report}
-        self.model = EdgeModel.from_points(points, c.init.opacity, c.init.k, self.generator)
+        self.model = EdgeModel.from_points(points, c.init.opacity, c.init.k, self.generator).to(self.device)
         self.optimizers = Optimizers(self.model, c)
-        self.state = self.strategy.initial_state(len(self.model))
+        self.state = self.strategy.initial_state(len(self.model), self.device)
         self.initial_count = len(self.model)
 
     def _bind_lower(self) -> None:
@@ -364,7 +372,7 @@ class Trainer:
         """Everything needed to continue exactly: model, Adam moments, strategy, random state."""
         payload = {
             "config": to_dict(self.config), "step_index": self.step_index, "model": self.model.to_numpy(),
-            "optimizers": self.optimizers.state_dict(), "absgrad": self.state.absgrad,
+            "optimizers": self.optimizers.state_dict(), "absgrad": self.state.absgrad.cpu(),
             "pruned_positions": self.state.pruned_positions, "fisher": self.state.fisher,
             "generator": self.generator.get_state(),
             "history": self.history, "events": self.events, "seconds": self.seconds,
@@ -380,8 +388,9 @@ class Trainer:
         saved = read_checkpoint(path)
         if _saved_config(saved, path) != self.config:
             raise InputError(path, "the checkpoint was made with another configuration")
-        self.model = EdgeModel.from_numpy(model_arrays(saved, "model", path)).requires_grad_()
-        self.lower = LowerLayers.from_numpy(model_arrays(saved, "lower", path, with_layers=True))
+        self.model = EdgeModel.from_numpy(model_arrays(saved, "model", path)).to(self.device).requires_grad_()
+        lower = LowerLayers.from_numpy(model_arrays(saved, "lower", path, with_layers=True))
+        self.lower = lower.to(self.device)
         try:
             self._restore(saved)
         except (AttributeError, KeyError, IndexError, TypeError, ValueError, RuntimeError) as exc:
@@ -393,7 +402,7 @@ class Trainer:
         """Everything of a read checkpoint but the models (set by `_load`)."""
         self.optimizers = Optimizers(self.model, self.config)
         self.optimizers.load_state_dict(saved["optimizers"])
-        self.state = StrategyState(saved["absgrad"], to_numpy(saved["pruned_positions"]),
+        self.state = StrategyState(saved["absgrad"].to(self.device), to_numpy(saved["pruned_positions"]),
                                    to_numpy(saved["fisher"]))
         if len(self.state.absgrad) != len(self.model):
             raise ValueError(f"absgrad has {len(self.state.absgrad)} rows for {len(self.model)} primitives")
@@ -429,8 +438,10 @@ class Trainer:
             "final_primitives": len(self.model), "lower_primitives": len(self.lower),
             "map_shift_px": self.shift_px(),
             "silhouette_correction": self.silhouette,
-            "train_seconds": round(self.seconds, 2),
+            "train_seconds": round(self.seconds, 2), "device": device_name(self.device),
             "peak_rss_mib": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1),
+            "peak_gpu_mib": (round(torch.cuda.max_memory_allocated(self.device) / 2**20, 1)
+                             if self.device.type == "cuda" else None),
             "non_finite_gradients_zeroed": self.bad_gradients, "events": self.events,
             "history": self.history,
         })
