@@ -8,7 +8,7 @@ SUDO   := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 # Debian packages the test suite needs: a virtual X server for the windowed GUI tests, and
 # Mesa's EGL/GL for offscreen rendering.
 DEB_PACKAGES := xvfb libegl1 libgl1-mesa-dri
-EXT_SOURCES  := $(wildcard csrc/*.cpp csrc/*.h) setup.py
+EXT_SOURCES  := $(wildcard csrc/*.cpp csrc/*.h csrc/*.cu) setup.py
 
 .PHONY: all setup system-deps build demo test test-fast lint docs screenshots clean
 
@@ -56,7 +56,7 @@ test-fast: setup
 IMPORT_TREE := build/import-tree
 lint: $(VENV)/.deps-installed
 	$(BIN)/python -m ruff check .
-	$(BIN)/clang-format --dry-run --Werror csrc/*.cpp csrc/*.h
+	$(BIN)/clang-format --dry-run --Werror csrc/*.cpp csrc/*.h csrc/*.cu
 	rm -rf $(IMPORT_TREE) && mkdir -p $(IMPORT_TREE)
 	cp -rs $(CURDIR)/edgedog $(IMPORT_TREE)/edgedog
 	cp -rs $(CURDIR)/renderer $(IMPORT_TREE)/edgedog/renderer

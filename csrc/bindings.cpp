@@ -21,8 +21,8 @@
 #include "tiles.h"
 
 #ifdef EDGEDOG_WITH_CUDA
-#include <c10/cuda/CUDAStream.h>
 #include <c10/cuda/CUDAGuard.h>
+#include <c10/cuda/CUDAStream.h>
 
 #include "cuda_kernels.h"
 
@@ -31,7 +31,7 @@
 #define EDGEDOG_CUDA_LAUNCH(like, launch)                                                  \
   do {                                                                                     \
     const c10::cuda::CUDAGuard guard((like).device());                                     \
-    const cudaStream_t stream = c10::cuda::getCurrentCUDAStream();                          \
+    const cudaStream_t stream = c10::cuda::getCurrentCUDAStream();                         \
     const cudaError_t error = (launch);                                                    \
     TORCH_CHECK(error == cudaSuccess, "edgedog CUDA kernel: ", cudaGetErrorString(error)); \
   } while (0)
