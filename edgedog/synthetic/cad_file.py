@@ -93,7 +93,7 @@ def read_cad(path: str | Path, unit: str | None = None) -> tuple[Shape, float]:
             shape, mm = _read_step(path, unit)
         else:
             shape, mm = _read_brep(path), _brep_unit(path, unit)
-    _check_solid(path, shape, mm)
+    check_solid(path, shape, mm)
     return Compound(shape), mm
 
 
@@ -130,7 +130,7 @@ def _brep_unit(path: Path, unit: str | None) -> float:
     return UNITS_MM[unit]
 
 
-def _check_solid(path: Path, shape: TopoDS_Shape, mm: float) -> None:
+def check_solid(path: Path, shape: TopoDS_Shape, mm: float) -> None:
     """InputError unless `shape` is one or more valid, closed, manifold solids of a part's size."""
     whole = Shape.cast(shape)
     faces, solids = whole.faces(), whole.solids()
