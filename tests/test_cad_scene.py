@@ -118,6 +118,12 @@ CASES = [
 ]
 
 
+def test_unit_is_for_cad_files_only(tmp_path, capsys):
+    assert main(["make-scene", "--shape", "box", "--unit", "mm", "--out", str(tmp_path / "scene")]) == 2
+    assert "--unit is the length unit of a --cad file" in capsys.readouterr().err
+    assert not list(tmp_path.iterdir())
+
+
 @pytest.mark.parametrize("case", cases_as_params(CASES))
 def test_a_bad_cad_file_is_one_line_and_nothing_is_written(case, tmp_path):
     assert_fails_cleanly(case, tmp_path)

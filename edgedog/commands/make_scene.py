@@ -96,7 +96,7 @@ def run(args: argparse.Namespace) -> None:
 
     degradations = degradations_from(args)
     if args.unit is not None and args.cad is None:
-        raise ConfigError("--unit is the unit of a --cad file; built-in shapes have theirs")
+        raise ConfigError("--unit is the length unit of a --cad file; leave it out with --shape and --abc")
     start = time.perf_counter()
     if args.cad is not None:
         from edgedog.synthetic.cad_file import cad_part  # the CAD kernel reads the file
