@@ -22,12 +22,13 @@ def add_parser(subparsers) -> None:
 
     parser = subparsers.add_parser(
         "make-scene", help="render a built-in CAD part or a STEP/BREP file as a scene with exact edges",
-        description="Render a procedural CAD part, or the solid of a STEP or BREP file, offscreen (EGL) "
-                    "from cameras on a sphere of radius 4, as ABC-NEF does, with pseudo-edge maps of a "
-                    "detector and ground-truth points sampled every 5 mm from the part's exact sharp "
-                    "edges (where its faces meet at more than 20 degrees; fillets are not sharp). The "
-                    "part is normalised into [0, 1]^3 like an ABC object. Optional degradations spoil "
-                    "the training views for robustness tests.",
+        description="Render a procedural CAD part, the solid of a STEP or BREP file, or an ABC object's "
+                    "mesh, offscreen (EGL) from cameras on a sphere of radius 4, as ABC-NEF does, with "
+                    "pseudo-edge maps of a detector and ground-truth points sampled every 5 mm from the "
+                    "part's exact sharp edges (where its faces' normals turn by more than 20 degrees: "
+                    "chamfers are sharp, fillets are not; an ABC object's `sharp` curves). The part is "
+                    "normalised into [0, 1]^3 like an ABC object. Optional degradations spoil the "
+                    "training views for robustness tests.",
         epilog="shapes: " + "; ".join(f"{name}: {description}" for name, description in SHAPES.items()))
     part = parser.add_mutually_exclusive_group(required=True)
     part.add_argument("--shape", choices=list(SHAPES), metavar="NAME", help="a built-in part (see below)")
