@@ -32,7 +32,7 @@ from edgedog.metrics import (
     sample_line,
     sample_polyline,
 )
-from edgedog.world import MAX_COORDINATE
+from edgedog.world import check_coordinates
 
 
 @dataclass
@@ -116,11 +116,7 @@ def read_edges(path: str | Path) -> EdgeCurves:
 def _within_bounds(path: Path, curves: EdgeCurves) -> EdgeCurves:
     """`curves` when their coordinates lie within MAX_COORDINATE and sampling them for the
     evaluation gives at most MAX_SAMPLES points; else an InputError naming the file."""
-    parts = [curves.lines, curves.beziers, curves.points, *curves.polylines]
-    largest = max((float(np.abs(part).max()) for part in parts if part.size), default=0.0)
-    if largest > MAX_COORDINATE:
-        raise InputError(path, f"holds a coordinate of {largest:.3g}, beyond the {MAX_COORDINATE:.0e} "
-                               "units a scene may span")
+    check_coordinates(path, curves.lines, curves.beziers, curves.points, *curves.polylines)
     count = curves.sample_bound()
     if count > MAX_SAMPLES:
         raise InputError(path, f"its curves would be sampled into {count:.3g} points every "

@@ -13,8 +13,9 @@ import numpy as np
 import pytest
 import torch
 
-from tests.helpers.bad_inputs import Case, assert_fails_cleanly, cases_as_params, edgedog
+from tests.helpers.bad_inputs import Case, assert_fails_cleanly, cases_as_params
 from tests.helpers.tiny_runs import QUICK_TRAIN as TRAIN
+from tests.helpers.tiny_runs import finished_run
 
 SCENE: Path
 RUN: Path
@@ -24,9 +25,7 @@ RUN: Path
 def scene_and_run(small_box_scene, tmp_path_factory):
     """The small box scene and a finished run of it, copied by the cases that change them."""
     global SCENE, RUN
-    SCENE, RUN = small_box_scene, tmp_path_factory.mktemp("bad-inputs") / "run"
-    trained = edgedog("train", SCENE, "--out", RUN, *TRAIN)
-    assert trained.returncode == 0, trained.stderr
+    SCENE, RUN = small_box_scene, finished_run(small_box_scene, tmp_path_factory.mktemp("bad-inputs") / "run")
 
 
 def copied_run(folder: Path) -> Path:

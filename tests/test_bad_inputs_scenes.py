@@ -296,7 +296,7 @@ CASES = [
     Case("focal-1e30", nerf_edit(updated(fl_x=1e30), "frame 0", "field of view")),
     Case("angle-1e-12", nerf_edit(updated(camera_angle_x=1e-12), "frame 0", "field of view")),
     Case("intrinsics-infinite", nerf_edit(intrinsics(1, [[INF, 0, 7.5], [0, 20, 7.5], [0, 0, 1]]),
-                                          "frame 1", "NaN or Inf")),
+                                          "frames[1].camera_intrinsics[0][0]", "Infinity")),
     Case("intrinsics-last-row", nerf_edit(intrinsics(0, [[20, 0, 7.5], [0, 20, 7.5], [0, 0, 0]]),
                                           "frame 0", "not of the form")),
     Case("principal-point-far-outside", nerf_edit(updated(fl_x=20.0, cx=1e5), "principal point")),

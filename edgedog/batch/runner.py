@@ -18,10 +18,11 @@ from typing import Protocol
 from edgedog.batch.jobs import Job, Task, TrainAndExtract
 from edgedog.batch.outcome import RunOutcome
 from edgedog.batch.suite import RunSpec
-from edgedog.batch.table import write_tables
+from edgedog.batch.table import BATCH_FILES, write_tables
 from edgedog.errors import ConfigError, InputError
+from edgedog.outputs import check_output_folder
 from edgedog.train.lifecycle import REUSE, plan_run
-from edgedog.train.run_folder import RunLock, is_run_folder
+from edgedog.train.run_folder import RunLock
 
 
 class Executor(Protocol):
@@ -64,14 +65,16 @@ def plan_jobs(specs: list[RunSpec], out: Path, suite_path: Path | None = None,
 def run_batch(specs: list[RunSpec], out: Path, executor: Executor, suite_path: Path | None = None,
               report: Callable[[int, int, RunOutcome], None] | None = None,
               task: Task | None = None,
-              summarise: Callable[[list[RunOutcome]], list[Path]] | None = None) -> BatchResult:
+              summarise: Callable[[list[RunOutcome]], list[Path]] | None = None,
+              own_files: tuple[str, ...] = BATCH_FILES) -> BatchResult:
     """Plan, execute (each run through `task`, default train and extract) and tabulate `specs`
     (their names unique) into `out` (locked throughout); `report(done, total, outcome)` is
     called as each run finishes (skipped ones first). `summarise(outcomes)`, a benchmark's own
-    tables, is called with `out` still locked; the files it returns are the result's too."""
+    tables, is called with `out` still locked; the files it returns are the result's too.
+    `out` may hold runs and `own_files` (the tables) of an earlier batch, nothing else of anyone's
+    (`check_output_folder`)."""
     out = Path(out).resolve()
-    if is_run_folder(out):
-        raise InputError(out, "is a training run; give the batch a folder of its own")
+    check_output_folder(out, own_files)
     with RunLock.acquire(out):
         jobs = plan_jobs(specs, out, suite_path, task)
         outcomes: dict[str, RunOutcome] = {}

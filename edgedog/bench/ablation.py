@@ -17,7 +17,7 @@ from pathlib import Path
 from edgedog.batch.outcome import RunOutcome
 from edgedog.batch.runner import BatchResult, Executor, run_batch
 from edgedog.batch.suite import RunSpec, spec_of_config
-from edgedog.batch.table import mean_and_spread
+from edgedog.batch.table import BATCH_FILES, mean_and_spread
 from edgedog.bench.tables import spread_cell
 from edgedog.errors import ConfigError, InputError
 from edgedog.files import atomic_write_bytes, atomic_write_json
@@ -174,7 +174,8 @@ def run_ablation(scene_path: Path, out: Path, preset_name: str, overrides: list[
         results.extend(row_result(row, [by_name[spec.name] for spec in specs[row.key]]) for row in rows)
         return write_report(out, results)
 
-    batch = run_batch(runs, out, executor, report=report, summarise=summarise)
+    batch = run_batch(runs, out, executor, report=report, summarise=summarise,
+                      own_files=BATCH_FILES + ABLATION_FILES)
     return AblationResult(results, batch)
 
 

@@ -27,6 +27,8 @@ from edgedog.train.levels import Level
 from edgedog.train.run_folder import RunLock
 
 DIRECT = "direct"
+LAYERS_FILES = ("layers.json", "layers.md", "layers.png")
+"""What the bench writes into OUT beside its two runs, its record first."""
 
 
 def layered_run(out: Path, scene_path: Path, preset_name: str, base: TrainConfig,
@@ -80,10 +82,10 @@ def _layers_bench(scene_path: Path, out: Path, preset_name: str, base: TrainConf
     if figure:
         from edgedog.bench.layers_figure import render_layers_figure
 
-        render_layers_figure(run, scene, out / "layers.png")
-        results["figure"] = str(out / "layers.png")
-    atomic_write_json(out / "layers.json", results)
-    atomic_write_bytes(out / "layers.md", markdown(results).encode())
+        render_layers_figure(run, scene, out / LAYERS_FILES[2])
+        results["figure"] = str(out / LAYERS_FILES[2])
+    atomic_write_json(out / LAYERS_FILES[0], results)
+    atomic_write_bytes(out / LAYERS_FILES[1], markdown(results).encode())
     return results
 
 

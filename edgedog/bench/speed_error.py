@@ -25,7 +25,7 @@ from edgedog.batch.jobs import Job
 from edgedog.batch.outcome import SKIPPED, RunOutcome
 from edgedog.batch.runner import BatchResult, Executor, run_batch
 from edgedog.batch.suite import RunSpec, spec_of_config
-from edgedog.batch.table import csv_text
+from edgedog.batch.table import BATCH_FILES, csv_text
 from edgedog.bench.tables import cell
 from edgedog.errors import ConfigError, InputError
 from edgedog.files import atomic_write_bytes, atomic_write_json, read_json
@@ -40,6 +40,9 @@ if TYPE_CHECKING:  # torch and the scene loaders load only when a bench runs
     from edgedog.train.trainer import Trainer
 
 RESULT = "speed_error.json"
+MAX_EVALS = 1000
+"""Evaluations per run (each extracts and scores the curves, seconds each); the loop over them is
+bounded here, not by the run's epochs."""
 """A budget's evaluations, in its run folder."""
 SUMMARY = ("speed_error.csv", "speed_error.md", "speed_error.png")
 """What the bench writes in OUT."""
@@ -93,8 +96,8 @@ def parse_budgets(text: str) -> list[Budget]:
 def evaluation_epochs(epochs: int, count: int) -> list[int]:
     """`count` epochs evenly spaced over a run of `epochs`, the last at the end (fewer when the
     run is shorter than `count` epochs)."""
-    if count < 1:
-        raise ConfigError(f"--evals must be at least 1, got {count}")
+    if not 1 <= count <= MAX_EVALS:
+        raise ConfigError(f"--evals must be an integer in [1, {MAX_EVALS}], got {count}")
     return sorted({max(1, round(epochs * i / count)) for i in range(1, count + 1)})
 
 
@@ -270,7 +273,7 @@ def run_speed_error(scene_path: Path, out: Path, budgets: list[Budget], override
         return write_summary(out, scene.name, results)
 
     batch = run_batch(specs, out, executor, report=report,
-                      task=EvaluatedTraining(evals), summarise=summarise)
+                      task=EvaluatedTraining(evals), summarise=summarise, own_files=BATCH_FILES + SUMMARY)
     return SpeedErrorResult(results, batch)
 
 

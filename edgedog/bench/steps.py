@@ -31,6 +31,8 @@ STEP_PREFIX = "ProfilerStep"
 """torch.profiler's label of each recorded step ("ProfilerStep*" in its averages)."""
 TOP_OPERATORS = 15
 MAX_WINDOWS = 100
+STEPS_FILES = ("steps.json", "steps.md")
+"""What the bench writes into OUT beside OUT/run, its record first."""
 MAX_WINDOW_STEPS = 1000
 
 
@@ -131,8 +133,8 @@ def run_steps_bench(scene_path: Path, out: Path, preset_name: str, config: Train
         summary = {"scene": str(scene.root), "preset": preset_name, "views": len(scene),
                    "size": [camera.width, camera.height], "threads": torch.get_num_threads(),
                    "final_primitives": len(trainer.model), **result.to_dict()}
-        atomic_write_json(out / "steps.json", summary)
-        atomic_write_bytes(out / "steps.md", markdown(summary).encode())
+        atomic_write_json(out / STEPS_FILES[0], summary)
+        atomic_write_bytes(out / STEPS_FILES[1], markdown(summary).encode())
     return result
 
 

@@ -8,6 +8,7 @@ import time
 from pathlib import Path
 
 from edgedog.batch.suite import EXAMPLE
+from edgedog.commands.arguments import bounded_integer
 from edgedog.errors import InputError
 
 EPILOG = "suite file (YAML):\n" + textwrap.indent(EXAMPLE, "  ") + """
@@ -32,19 +33,9 @@ def add_parser(subparsers) -> None:
     parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                         help="override a training setting in every run, after the suite's `set` "
                              "(repeatable; part of the runs' folder names)")
-    parser.add_argument("--cpus-per-run", type=_positive, default=1, metavar="N",
+    parser.add_argument("--cpus-per-run", type=bounded_integer(1, 1024), default=1, metavar="N",
                         help="CPUs (and torch/OpenMP threads) of each run (default 1)")
     parser.set_defaults(run=run, resume_hint=resume_hint)
-
-
-def _positive(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        value = 0
-    if not 1 <= value <= 1024:
-        raise argparse.ArgumentTypeError(f"must be an integer in [1, 1024], got {text!r}")
-    return value
 
 
 def resume_hint(args: argparse.Namespace) -> str:
@@ -55,10 +46,13 @@ def run(args: argparse.Namespace) -> None:
     from edgedog.batch.executors import RayExecutor, require_ray
     from edgedog.batch.runner import run_batch
     from edgedog.batch.suite import expand, load_suite
+    from edgedog.batch.table import BATCH_FILES
+    from edgedog.outputs import check_output_folder
 
     suite = load_suite(args.suite, tuple(args.overrides))
     specs = expand(suite)
-    require_ray()  # after the suite's checks: they need no Ray
+    check_output_folder(args.out, BATCH_FILES)  # run_batch checks it too; this is before Ray starts
+    require_ray()  # after the suite's and the folder's checks: they need no Ray
     started = time.monotonic()
     result = run_batch(specs, args.out, RayExecutor(args.address, args.cpus_per_run), suite.path,
                        report=print_progress)

@@ -8,34 +8,17 @@ import typing
 from pathlib import Path
 
 from edgedog.bench.ablation import TABLES, select_rows
+from edgedog.commands.arguments import MAX_SIZE, bounded_integer
 from edgedog.errors import ConfigError
 from edgedog.files import atomic_write_json
-from edgedog.settings import Range
+from edgedog.outputs import check_new_file, check_output_folder, output_file
 from edgedog.train.config import DEFAULT_PRESET, MAX_SEED, PRESETS, Kernel
 
-MAX_SIZE = 4096
-"""Image width and height in px: a 4K view (the datasets' largest are 1600 px)."""
 MAX_BENCH_PRIMITIVES = 100_000
 """The torch reference keeps each tile's (pixels x primitives) matrices for its backward: about
 40 KB per primitive at 800 px (1.2 GB at the default 20,000), so about 5 GB at this bound."""
 MAX_VIEWS = 1000
 """Views timed; each costs a forward, a backward and a Fisher pass."""
-
-
-def _integer(low: int, high: int):
-    """An argparse type: an integer in [low, high] (argparse names the option in its error)."""
-    bounds = Range(low, high)
-
-    def integer(text: str) -> int:
-        try:
-            value = int(text)
-        except ValueError:
-            value = None
-        if value is None or value not in bounds:
-            raise argparse.ArgumentTypeError(f"must be an integer {bounds}, got {text!r}")
-        return value
-
-    return integer
 
 
 def _seeds(text: str) -> tuple[int, ...]:
@@ -56,7 +39,7 @@ def _add_batch_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--address", default=None, metavar="auto|HOST:PORT|ray://HOST:PORT",
                         help="a Ray cluster to run on, as for edgedog batch; default: Ray started on this "
                              "machine when it is installed, else one run after another in this process")
-    parser.add_argument("--cpus-per-run", type=_integer(1, 1024), default=1, metavar="N",
+    parser.add_argument("--cpus-per-run", type=bounded_integer(1, 1024), default=1, metavar="N",
                         help="CPUs (and torch/OpenMP threads) of each run (default 1)")
     parser.add_argument("--quiet", action="store_true", help="no line per finished run")
 
@@ -76,26 +59,30 @@ def _add_run_arguments(parser: argparse.ArgumentParser, scene_help: str, out_hel
 def add_parser(subparsers) -> None:
     parser = subparsers.add_parser("bench", help="run a benchmark and print its JSON")
     kinds = parser.add_subparsers(dest="benchmark", required=True, metavar="BENCHMARK")
-    raster = kinds.add_parser("raster", help="rasterizer speed: C++ path against the torch reference",
+    raster = kinds.add_parser("raster", help="rasterizer speed: the kernels against the torch reference",
                               description="Render 800x800 views of an ABC-like scene of thin primitives "
                                           "and time forward, backward and Fisher per view.")
-    raster.add_argument("--primitives", type=_integer(1, MAX_BENCH_PRIMITIVES), default=20000)
-    raster.add_argument("--size", type=_integer(16, MAX_SIZE), default=800, help="image width and height")
-    raster.add_argument("--views", type=_integer(1, MAX_VIEWS), default=50)
-    raster.add_argument("--reference-views", type=_integer(1, MAX_VIEWS), default=1,
+    raster.add_argument("--primitives", type=bounded_integer(1, MAX_BENCH_PRIMITIVES), default=20000)
+    raster.add_argument("--size", type=bounded_integer(16, MAX_SIZE), default=800,
+                        help="image width and height")
+    raster.add_argument("--views", type=bounded_integer(1, MAX_VIEWS), default=50)
+    raster.add_argument("--reference-views", type=bounded_integer(1, MAX_VIEWS), default=1,
                         help="views timed with the slow torch reference (at most --views)")
     raster.add_argument("--kernel", choices=typing.get_args(Kernel), default="dog")
-    raster.add_argument("--seed", type=_integer(0, MAX_SEED), default=0)
-    raster.add_argument("--json", type=Path, default=None, help="also write the result here")
+    raster.add_argument("--seed", type=bounded_integer(0, MAX_SEED), default=0)
+    raster.add_argument("--device", choices=("auto", "cpu", "cuda"), default="auto",
+                        help="where the kernels run (auto: CUDA when built with it and a GPU is seen)")
+    _add_json_arguments(raster)
     raster.set_defaults(run=run_raster)
     edges = kinds.add_parser("edges", help="2D edge detectors' speed per megapixel",
                              description="Time every available detector on one image of the built-in "
                                          "scene (PiDiNet variants when their weights are found).")
-    edges.add_argument("--size", type=_integer(16, MAX_SIZE), default=800, help="image width and height")
-    edges.add_argument("--repeats", type=_integer(1, 100), default=3)
+    edges.add_argument("--size", type=bounded_integer(16, MAX_SIZE), default=800,
+                       help="image width and height")
+    edges.add_argument("--repeats", type=bounded_integer(1, 100), default=3)
     edges.add_argument("--weights", type=Path, default=None,
                        help="PiDiNet weights (default $EDGEDOG_PIDINET)")
-    edges.add_argument("--json", type=Path, default=None, help="also write the result here")
+    _add_json_arguments(edges)
     edges.set_defaults(run=run_edges)
     ablation = kinds.add_parser(
         "ablation", help="EdgeDoG's components, weighting functions (the paper's Tables 3 and 4) and "
@@ -155,7 +142,7 @@ def _add_steps(kinds) -> None:
 
 
 def _add_speed_error(kinds) -> None:
-    from edgedog.bench.speed_error import BUDGETS, DEFAULT_BUDGETS
+    from edgedog.bench.speed_error import BUDGETS, DEFAULT_BUDGETS, MAX_EVALS
 
     speed = kinds.add_parser(
         "speed-error", help="error of the extracted curves against training time, for a few budgets",
@@ -170,17 +157,30 @@ def _add_speed_error(kinds) -> None:
                        "or epoch share (repeatable)", preset=None)
     speed.add_argument("--budgets", default=DEFAULT_BUDGETS,
                        help=f"comma-separated budget names (default {DEFAULT_BUDGETS})")
-    speed.add_argument("--evals", type=int, default=5,
+    speed.add_argument("--evals", type=bounded_integer(1, MAX_EVALS), default=5,
                        help="evaluation points per run, evenly spaced in epochs, the last at the end")
     _add_batch_options(speed)
     speed.set_defaults(run=run_speed_error)
 
 
-def _report(result: dict, path: Path | None) -> None:
-    """Print a benchmark's JSON, and write it atomically to `path` when given."""
+def _add_json_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--json", type=Path, default=None, help="also write the result here (never over a "
+                        "run's own file nor inside a scene folder)")
+    parser.add_argument("--force", action="store_true", help="replace the --json file if it exists")
+
+
+def _check_json(args: argparse.Namespace) -> None:
+    """Refuse a --json file that may not be written before the benchmark runs, not after."""
+    if args.json is not None:
+        check_new_file(args.json, args.force)
+
+
+def _report(result: dict, args: argparse.Namespace) -> None:
+    """Print a benchmark's JSON, and write it atomically to --json when given."""
     print(json.dumps(result, indent=2))
-    if path is not None:
-        atomic_write_json(path, result)
+    if args.json is not None:
+        with output_file(args.json, args.force):
+            atomic_write_json(args.json, result)
 
 
 def run_raster(args: argparse.Namespace) -> None:
@@ -188,9 +188,10 @@ def run_raster(args: argparse.Namespace) -> None:
 
     if args.reference_views > args.views:
         raise ConfigError(f"--reference-views {args.reference_views}: at most --views ({args.views})")
+    _check_json(args)
     result = run(RasterBenchConfig(args.primitives, args.size, args.views, args.reference_views, args.kernel,
-                                   args.seed))
-    _report(result, args.json)
+                                   args.seed, args.device))
+    _report(result, args)
     print(summary(result))
 
 
@@ -251,13 +252,14 @@ def run_speed_error(args: argparse.Namespace) -> None:
 
 
 def run_layers(args: argparse.Namespace) -> None:
-    from edgedog.bench.layers import markdown, run_layers_bench
+    from edgedog.bench.layers import LAYERS_FILES, markdown, run_layers_bench
     from edgedog.train.config import preset, with_overrides
     from edgedog.train.levels import resolve_levels
 
     names = [name.strip() for name in args.layers.split(",") if name.strip()]
     levels = resolve_levels(names, args.levels)
     base = with_overrides(preset(args.preset), args.overrides)
+    check_output_folder(args.out, LAYERS_FILES)
     results = run_layers_bench(args.scene, args.out, args.preset, base, levels, progress=not args.quiet,
                                figure=not args.no_figure)
     print(markdown(results))
@@ -266,18 +268,20 @@ def run_layers(args: argparse.Namespace) -> None:
 
 
 def run_steps(args: argparse.Namespace) -> None:
-    from edgedog.bench.steps import markdown, run_steps_bench
+    from edgedog.bench.steps import STEPS_FILES, markdown, run_steps_bench
     from edgedog.files import read_json
     from edgedog.train.config import preset, with_overrides
 
     config = with_overrides(preset(args.preset), args.overrides)
+    check_output_folder(args.out, STEPS_FILES)
     run_steps_bench(args.scene, args.out, args.preset, config, args.windows, args.window_steps,
                     progress=not args.quiet)
-    print(markdown(read_json(args.out / "steps.json")))
-    print(f"wrote {args.out / 'steps.json'} and {args.out / 'steps.md'}")
+    print(markdown(read_json(args.out / STEPS_FILES[0])))
+    print(f"wrote {args.out / STEPS_FILES[0]} and {args.out / STEPS_FILES[1]}")
 
 
 def run_edges(args: argparse.Namespace) -> None:
     from edgedog.bench.edges import run
 
-    _report(run(args.size, args.repeats, args.weights), args.json)
+    _check_json(args)
+    _report(run(args.size, args.repeats, args.weights), args)

@@ -8,10 +8,15 @@ import argparse
 import json
 from pathlib import Path
 
+from edgedog.commands.arguments import MAX_SIZE, bounded_integer
 from edgedog.commands.scene_args import add_scene_options, open_scene
 from edgedog.edges import calibrate
 from edgedog.edges.registry import detector_names
 from edgedog.errors import ConfigError
+from edgedog.train.config import MAX_SEED
+
+MAX_VIEWS = 1000
+"""Orbit views rendered per part and size."""
 
 
 def _names(text: str) -> list[str]:
@@ -23,8 +28,9 @@ def _sizes(text: str) -> list[int]:
         sizes = [int(size) for size in _names(text)]
     except ValueError:
         sizes = []
-    if not sizes or min(sizes) < 16:
-        raise argparse.ArgumentTypeError(f"expected image sizes like 400,800 (px, >= 16), got {text!r}")
+    if not sizes or min(sizes) < 16 or max(sizes) > MAX_SIZE:
+        raise argparse.ArgumentTypeError(f"expected image sizes like 400,800 (px, in [16, {MAX_SIZE}]), "
+                                         f"got {text!r}")
     return sizes
 
 
@@ -46,11 +52,15 @@ def add_parser(subparsers) -> None:
     shapes = ",".join(calibrate.DEFAULT_SHAPES)
     parser.add_argument("--shapes", type=_names, default=list(calibrate.DEFAULT_SHAPES),
                         help=f"built-in parts to render, comma-separated (default {shapes})")
-    parser.add_argument("--views", type=int, default=8, help="orbit views per part and size (default 8)")
+    parser.add_argument("--views", type=bounded_integer(1, MAX_VIEWS), default=8,
+                        help="orbit views per part and size (default 8)")
     parser.add_argument("--sizes", type=_sizes, default=[400, 800],
                         help="image sizes in px, comma-separated (default 400,800)")
-    parser.add_argument("--seed", type=int, default=0, help="seed of the parts' dimensions (default 0)")
-    parser.add_argument("--json", type=Path, default=None, metavar="OUT", help="also write the result here")
+    parser.add_argument("--seed", type=bounded_integer(0, MAX_SEED), default=0,
+                        help="seed of the parts' dimensions (default 0)")
+    parser.add_argument("--json", type=Path, default=None, metavar="OUT", help="also write the result here "
+                        "(never over a run's own file nor inside a scene folder)")
+    parser.add_argument("--force", action="store_true", help="replace the --json file if it exists")
     add_scene_options(parser)
     parser.set_defaults(run=run)
 
@@ -71,16 +81,22 @@ def _measurement_lines(measurement: calibrate.OffsetMeasurement) -> list[str]:
     return lines
 
 
-def _print_and_write(lines: list[str], record: dict, out: Path | None) -> None:
+def _print_and_write(lines: list[str], record: dict, args: argparse.Namespace) -> None:
     from edgedog.files import atomic_write_json
+    from edgedog.outputs import output_file
 
     print("\n".join(lines))
     print(json.dumps(record))  # one line, last: for scripts
-    if out is not None:
-        atomic_write_json(out, record)
+    if args.json is not None:
+        with output_file(args.json, args.force):
+            atomic_write_json(args.json, record)
 
 
 def run(args: argparse.Namespace) -> None:
+    from edgedog.outputs import check_new_file
+
+    if args.json is not None:
+        check_new_file(args.json, args.force)  # before the work, not after it
     if args.scene is not None:
         if args.maps is None:
             raise ConfigError("--scene needs --maps NAME: which of the scene's edge maps to measure")
@@ -90,12 +106,10 @@ def run(args: argparse.Namespace) -> None:
 
         lines = [f"{scene.root}: '{args.maps}' maps against {ground_truth_for(scene.root).description}",
                  *_measurement_lines(measurement)]
-        _print_and_write(lines, measurement.to_dict(), args.json)
+        _print_and_write(lines, measurement.to_dict(), args)
         return
     if args.maps is not None:
         raise ConfigError("--maps goes with --scene; with --detector the maps are computed on built-in parts")
-    if args.views < 1:
-        raise ConfigError(f"--views must be at least 1, got {args.views}")
     from edgedog.edges.registry import make_detector
     from edgedog.synthetic.shapes import make_part
 
@@ -113,4 +127,4 @@ def run(args: argparse.Namespace) -> None:
         lines.append(f"at {size} px".ljust(14) + f"dx {dx:+.2f} px, dy {dy:+.2f} px, "
                      f"width {measurement.profile.width_px:.2f} px")
     lines.append(f"record        {path}")
-    _print_and_write(lines, calibration.to_dict(), args.json)
+    _print_and_write(lines, calibration.to_dict(), args)

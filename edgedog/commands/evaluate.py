@@ -12,7 +12,9 @@ from edgedog.errors import InputError
 from edgedog.files import atomic_write_json
 from edgedog.groundtruth import ground_truth_for, read_points_ply
 from edgedog.metrics import SAMPLE_SPACING, VOXELS_PER_AXIS, EdgeMetrics, evaluate
+from edgedog.outputs import check_new_file, output_file
 from edgedog.scenes import load_scene
+from edgedog.world import check_coordinates
 
 
 def add_parser(subparsers) -> None:
@@ -31,7 +33,9 @@ def add_parser(subparsers) -> None:
     parser.add_argument("--no-voxel", action="store_true",
                         help="skip the 256^3 voxel averaging of the prediction")
     parser.add_argument("--json", type=Path, default=None,
-                        help="where to write the metrics (default: PRED's name + .eval.json)")
+                        help="where to write the metrics (default: PRED's name + .eval.json, replaced by "
+                             "each eval); never a run's own file nor inside a scene folder")
+    parser.add_argument("--force", action="store_true", help="replace the --json file if it exists")
     parser.set_defaults(run=run)
 
 
@@ -49,6 +53,9 @@ def score_file(pred: Path, gt_points, world_to_gt=None, voxelize: bool = True) -
 
 
 def run(args: argparse.Namespace) -> None:
+    default = args.pred.with_name(args.pred.name + ".eval.json")
+    out = args.json or default
+    check_new_file(out, args.force, default)  # before the work, not after it
     if args.scene is not None:
         scene = load_scene(args.scene)
         ground_truth = ground_truth_for(scene.root)
@@ -58,15 +65,16 @@ def run(args: argparse.Namespace) -> None:
         world_to_gt = scene.world_to_gt if args.frame == "world" else None
     else:
         gt_points, gt_source, world_to_gt = read_points_ply(args.gt), str(args.gt), None
+        check_coordinates(args.gt, gt_points)  # farther ones overflow the distances to Infinity
     metrics = score_file(args.pred, gt_points, world_to_gt, voxelize=not args.no_voxel)
     print(f"{args.pred}  vs  {gt_source}")
     print(metrics.table())
-    out = args.json or args.pred.with_name(args.pred.name + ".eval.json")
-    atomic_write_json(out, {
-        "prediction": str(args.pred.resolve()),
-        "ground_truth": gt_source,
-        "protocol": {"sample_spacing": SAMPLE_SPACING, "voxels_per_axis": VOXELS_PER_AXIS,
-                     "voxelized": not args.no_voxel},
-        "metrics": metrics.to_dict(),
-    })
+    with output_file(out, args.force, default):
+        atomic_write_json(out, {
+            "prediction": str(args.pred.resolve()),
+            "ground_truth": gt_source,
+            "protocol": {"sample_spacing": SAMPLE_SPACING, "voxels_per_axis": VOXELS_PER_AXIS,
+                         "voxelized": not args.no_voxel},
+            "metrics": metrics.to_dict(),
+        })
     print(f"metrics written to {out}")

@@ -23,15 +23,17 @@ def add_parser(subparsers) -> None:
                         help="for a layered run: the selection to export, a layer (L1) or a "
                              "cumulative stack (L0+L1); default the whole stack")
     parser.add_argument("--out", type=Path, default=None,
-                        help="output file (default: RUN/curves_<frame>.<format>)")
+                        help="output file (default: RUN/curves_<frame>.<format>, replaced by each export); "
+                             "never a run's own file nor inside a scene folder")
+    parser.add_argument("--force", action="store_true", help="replace the --out file if it exists")
     parser.set_defaults(run=run)
 
 
 def run(args: argparse.Namespace) -> None:
     from edgedog.curve_files import read_edges, write_edges
     from edgedog.curves.extract import run_scene
+    from edgedog.outputs import output_file
     from edgedog.train.layered import is_layered, read_layered, selections
-    from edgedog.train.run_folder import RunLock
 
     folder, frame_run = args.run_dir, args.run_dir
     if is_layered(args.run_dir):
@@ -49,13 +51,11 @@ def run(args: argparse.Namespace) -> None:
     curves = read_edges(source)
     if args.frame == "gt":
         curves = curves.transformed(run_scene(frame_run, maps=False)[0].world_to_gt)
-    out = args.out or folder / f"curves_{args.frame}.{args.format}"
+    default = folder / f"curves_{args.frame}.{args.format}"
+    out = args.out or default
     if out.suffix.lower() != f".{args.format}":
         raise InputError(out, f"the file name must end in .{args.format} for --format {args.format}")
-    if out.resolve().is_relative_to(args.run_dir.resolve()):
-        with RunLock.acquire(args.run_dir):
-            write_edges(out, curves)
-    else:
+    with output_file(out, args.force, default):
         write_edges(out, curves)
     print(f"{curves.num_curves} curves ({len(curves.lines)} lines, {len(curves.beziers)} Béziers) "
           f"written to {out}")

@@ -40,7 +40,9 @@ def add_parser(subparsers) -> None:
     parser.add_argument("--match-neighbours", type=int, default=DEFAULTS.match_neighbours,
                         help="triangulation matches each view with this many nearest views facing its way; "
                              f"0: every pair (default {DEFAULTS.match_neighbours}, as `edgedog train`)")
-    parser.add_argument("--out", type=Path, default=None, help="write the points as a PLY (x, y, z, scale)")
+    parser.add_argument("--out", type=Path, default=None, help="write the points as a PLY (x, y, z, scale); "
+                        "never over a run's own file nor inside a scene folder")
+    parser.add_argument("--force", action="store_true", help="replace the --out file if it exists")
     add_scene_options(parser)
     parser.set_defaults(run=run)
 
@@ -71,8 +73,11 @@ def settings_of(args: argparse.Namespace):
 
 def run(args: argparse.Namespace) -> None:
     from edgedog.init import initialize
+    from edgedog.outputs import check_new_file, output_file
 
     settings = settings_of(args)
+    if args.out is not None:
+        check_new_file(args.out, args.force)  # before the work, not after it
     scene = open_scene(args.scene, args)
     points = initialize(scene, settings, detector=args.detector, min_points=args.min_points)
     print(json.dumps({"method": points.method, "points": len(points), **points.report}, indent=2,
@@ -82,5 +87,6 @@ def run(args: argparse.Namespace) -> None:
         rows["x"], rows["y"], rows["z"] = points.positions.T
         rows["scale"] = points.scales
         ply = PlyData([PlyElement.describe(rows, "vertex")])
-        atomic_write(args.out, ply.write)
+        with output_file(args.out, args.force):
+            atomic_write(args.out, ply.write)
         print(f"{len(points)} points written to {args.out}")

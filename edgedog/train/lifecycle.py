@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING
 from edgedog.errors import ConfigError, InputError
 from edgedog.files import read_json
 from edgedog.train.config import DEFAULT_PRESET, TrainConfig, for_detector, from_dict
+from edgedog.train.memory import check_memory
 from edgedog.train.run_folder import (
     RUN_CONFIG,
     RunFolder,
@@ -110,6 +111,7 @@ def load_run_scene(path: str | Path, config: TrainConfig) -> Scene:
     scene = load_scene(path, downscale=config.maps.downscale)
     if len(scene) == 0:
         raise InputError(scene.root, "the scene has no views")
+    check_memory(scene, config.maps.downscale)
     if config.maps.detector != "auto" and config.maps.detector not in scene.detectors:
         make_detector(config.maps.detector)
     if scene.damaged and config.run.damaged_views == "skip":
@@ -129,10 +131,18 @@ def fingerprint(scene: Scene) -> str:
     return scene_fingerprint(scene)
 
 
-def check_scene_of_run(path: Path, trained_on: Path, trained_fingerprint: str | None, scene: Scene) -> None:
+def maps_fingerprint(scene: Scene) -> str:
+    from edgedog.scenes import fingerprint as digests
+
+    return digests.maps_fingerprint(scene)
+
+
+def check_scene_of_run(path: Path, trained_on: Path, trained_fingerprint: str | None, scene: Scene,
+                       trained_maps: str | None = None) -> None:
     """`scene` must be the scene the run in `path` trained on (`trained_on`, with
     `trained_fingerprint`): the same cameras and images (by fingerprint; the folder may have
-    moved), or, for runs that recorded no fingerprint, the same folder."""
+    moved), or, for runs that recorded no fingerprint, the same folder; and, when the run recorded
+    them (`trained_maps`), the same shipped edge maps and masks."""
     if trained_fingerprint is None:
         if scene.root != Path(trained_on).resolve():
             raise InputError(path, f"was trained on {trained_on}, not {scene.root}; pass that scene")
@@ -140,6 +150,10 @@ def check_scene_of_run(path: Path, trained_on: Path, trained_fingerprint: str | 
         raise InputError(path, f"was trained on {trained_on} (fingerprint {trained_fingerprint}); "
                                f"{scene.root} has other cameras or images "
                                f"(fingerprint {fingerprint(scene)}); pass the run's scene")
+    if trained_maps is not None and (current := maps_fingerprint(scene)) != trained_maps:
+        raise InputError(path, f"was trained on {trained_on} with other edge maps or masks (fingerprint "
+                               f"{trained_maps}); {scene.root} now ships {current}: pass the scene as it "
+                               "was, or start a new run with another --out")
 
 
 def _checkpoint_step(path: Path) -> int:
@@ -204,12 +218,14 @@ def plan_run(out: Path, scene: str | Path, preset: str = DEFAULT_PRESET, config:
         if policy == CONTINUE:
             _check_continuable(out)
             run = read_run(out)
-            check_scene_of_run(run.path, run.scene, run.scene_fingerprint, load_run_scene(scene, run.config))
+            check_scene_of_run(run.path, run.scene, run.scene_fingerprint, load_run_scene(scene, run.config),
+                               run.maps_fingerprint)
             return _folder_plan(run, policy)
         if policy == START:
             _folder_plan(pending, policy)  # a refused folder is reported before the scene is read
         loaded = load_run_scene(scene, pending.config)
-        run = dataclasses.replace(pending, scene=loaded.root, scene_fingerprint=fingerprint(loaded))
+        run = dataclasses.replace(pending, scene=loaded.root, scene_fingerprint=fingerprint(loaded),
+                                  maps_fingerprint=maps_fingerprint(loaded))
         return _folder_plan(run, policy)
     except InputError as error:
         return _refused(pending, policy, error)
@@ -240,17 +256,23 @@ def execute(plan: RunPlan, scene: Scene | None = None, progress: bool = True,
     from edgedog.train.trainer import Trainer
 
     run = plan.check().run
-    with RunLock.acquire(run.path):
-        current = replan(plan).check()
-        if scene is None:
-            scene = load_run_scene(run.scene, run.config)
-        if current.state == NEW:
-            write_run(run)
-        # --resume of a finished run loads it all the same: its checkpoint is checked, its outputs
-        # written again (no step is left to train).
-        trained = current.state != FINISHED or plan.policy == CONTINUE
-        if trained:
-            trainer = Trainer(scene, run.config, run.path, progress=progress)
+    made = not run.path.exists()
+    with RunLock.acquire(run.path) as lock:
+        try:
+            current = replan(plan).check()
+            if scene is None:
+                scene = load_run_scene(run.scene, run.config)
+            # --resume of a finished run loads it all the same: its checkpoint is checked, its outputs
+            # written again (no step is left to train).
+            trained = current.state != FINISHED or plan.policy == CONTINUE
+            trainer = Trainer(scene, run.config, run.path, progress=progress) if trained else None
+            if current.state == NEW:
+                write_run(run)
+        except BaseException:
+            if plan.state == NEW:  # refused before training: leave the folder as it was
+                lock.discard(remove_folder=made)
+            raise
+        if trainer is not None:
             if on_trainer is not None:
                 on_trainer(trainer)
             trainer.run()

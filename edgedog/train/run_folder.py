@@ -9,6 +9,7 @@ writer holds the folder's lock while it writes (`RunLock`).
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import fcntl
 import hashlib
@@ -17,7 +18,7 @@ import os
 from dataclasses import dataclass
 from pathlib import Path
 
-from edgedog.errors import ConfigError, InputError
+from edgedog.errors import ConfigError, InputError, OutputError
 from edgedog.files import atomic_write_json, create_folder, read_json
 from edgedog.train.config import DEFAULT_PRESET, PRESETS_RENAMED, TrainConfig, from_dict, to_dict
 
@@ -36,13 +37,15 @@ class RunFolder:
     """path: the run folder; scene: the scene folder; preset: the preset the config started
     from (DEFAULT_PRESET when a file does not say); config: the full resolved config;
     scene_fingerprint: `edgedog.scenes.fingerprint.scene_fingerprint` of the scene trained on
-    (None in runs written before it was recorded)."""
+    (None in runs written before it was recorded); maps_fingerprint: `maps_fingerprint` of its
+    shipped edge maps and masks (None in runs written before it was recorded)."""
 
     path: Path
     scene: Path
     preset: str
     config: TrainConfig
     scene_fingerprint: str | None = None
+    maps_fingerprint: str | None = None
 
 
 def _run_config_data(path: Path) -> dict | None:
@@ -76,10 +79,12 @@ def read_run(path: Path) -> RunFolder:
     if not isinstance(version, int) or version > RUN_VERSION:
         raise InputError(file, f"run format version {version!r} is newer than this edgedog reads "
                                f"({RUN_VERSION}); update edgedog")
-    scene, fingerprint = data["scene"], data.get("scene_fingerprint")
+    scene, fingerprint, maps = data["scene"], data.get("scene_fingerprint"), data.get("maps_fingerprint")
     preset = data.get("preset", DEFAULT_PRESET)
-    if not (isinstance(scene, str) and isinstance(preset, str) and isinstance(fingerprint, str | None)):
-        raise InputError(file, "'scene', 'preset' and 'scene_fingerprint' must be strings")
+    if not (isinstance(scene, str) and isinstance(preset, str) and isinstance(fingerprint, str | None)
+            and isinstance(maps, str | None)):
+        raise InputError(file, "'scene', 'preset', 'scene_fingerprint' and 'maps_fingerprint' must be "
+                               "strings")
     if version < 3:
         preset = PRESETS_RENAMED.get(preset, preset)
     if not isinstance(data["config"], dict):
@@ -88,20 +93,44 @@ def read_run(path: Path) -> RunFolder:
         config = from_dict(data["config"])
     except ConfigError as exc:
         raise InputError(file, f"config: {exc}") from None
-    return RunFolder(Path(path), Path(scene), preset, config, fingerprint)
+    return RunFolder(Path(path), Path(scene), preset, config, fingerprint, maps)
 
 
 def write_run(run: RunFolder) -> None:
     """Write config.json atomically, creating the run folder if needed."""
     atomic_write_json(run.path / RUN_CONFIG, {
         "format": RUN_FORMAT, "version": RUN_VERSION, "scene": str(run.scene),
-        "scene_fingerprint": run.scene_fingerprint, "preset": run.preset, "config": to_dict(run.config)})
+        "scene_fingerprint": run.scene_fingerprint, "maps_fingerprint": run.maps_fingerprint,
+        "preset": run.preset, "config": to_dict(run.config)})
+
+
+def enclosing_scene(path: str | Path) -> Path | None:
+    """The scene folder that `path` is or lies in (a folder above it holds a scene's cameras), None
+    when it lies in none."""
+    from edgedog.scenes import FORMATS
+
+    path = Path(os.path.realpath(path))  # a symlink loop stays as it is (Path.resolve raises)
+    for folder in (path, *path.parents):
+        if folder.is_dir() and any(test(folder) for _, test, _ in FORMATS):
+            return folder
+    return None
+
+
+def check_outside_scenes(path: str | Path) -> None:
+    """OutputError when the file or folder `path` is or lies inside a scene folder: a scene holds a
+    user's images, cameras and maps, and edgedog writes none of its outputs there."""
+    scene = enclosing_scene(path)
+    if scene is not None:
+        raise OutputError(path, f"lies inside the scene folder {scene}; edgedog never writes into a scene "
+                                "folder: choose a path outside it")
 
 
 def check_new_run_folder(path: Path) -> None:
-    """A new run may go into `path` only when it does not exist or is an empty folder: never
-    into another run (that is `--resume`'s job) nor into a folder of someone else's files."""
+    """A new run may go into `path` only when it does not exist or is an empty folder outside any
+    scene folder: never into another run (that is `--resume`'s job) nor into a folder of someone
+    else's files."""
     path = Path(path)
+    check_outside_scenes(path)
     if not path.exists():
         if path.is_symlink():
             raise InputError(path, "is a broken symbolic link; choose another folder")
@@ -132,12 +161,26 @@ def check_same_run(run: RunFolder) -> None:
         existing = read_run(run.path)
         if existing.config != run.config or existing.scene != run.scene:
             raise InputError(run.path, "holds a run of another scene or configuration; choose another --out")
-        if None not in (existing.scene_fingerprint, run.scene_fingerprint) and \
-                existing.scene_fingerprint != run.scene_fingerprint:
+        if differ(existing.scene_fingerprint, run.scene_fingerprint):
             raise InputError(run.path, "holds a run of this scene as it was before its cameras or images "
+                                       "changed; choose another --out")
+        if differ(existing.maps_fingerprint, run.maps_fingerprint):
+            raise InputError(run.path, "holds a run of this scene as it was before its edge maps or masks "
                                        "changed; choose another --out")
     else:
         check_new_run_folder(run.path)
+
+
+def differ(recorded: str | None, current: str | None) -> bool:
+    """Whether two fingerprints tell two contents apart (None: a run written before it was recorded)."""
+    return None not in (recorded, current) and recorded != current
+
+
+def _same_file(fd: int, path: Path) -> bool:
+    try:
+        return os.path.samestat(os.fstat(fd), os.stat(path))
+    except OSError:
+        return False
 
 
 class RunLock:
@@ -169,6 +212,9 @@ class RunLock:
                 raise InputError(path, f"is in use by another edgedog process (pid {owner}); wait for it "
                                        "to finish or choose another folder") from None
             raise InputError(path, f"cannot be locked ({exc.strerror})") from None
+        if not _same_file(fd, path / LOCK_FILE):  # its holder discarded it while we waited
+            os.close(fd)
+            raise InputError(path, "was just given up by another edgedog process; run the command again")
         os.ftruncate(fd, 0)
         os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
         return cls(path, fd)
@@ -178,6 +224,16 @@ class RunLock:
         if self._fd is not None:
             os.close(self._fd)
             self._fd = None
+
+    def discard(self, remove_folder: bool = False) -> None:
+        """Remove the lock file, and the folder too when `remove_folder` and nothing else is in it,
+        then unlock: what a writer refused before writing anything leaves behind is nothing. A
+        writer that opened the lock file meanwhile finds it gone once locked (`acquire`)."""
+        (self.path / LOCK_FILE).unlink(missing_ok=True)
+        if remove_folder:
+            with contextlib.suppress(OSError):  # not empty: someone else's files came meanwhile
+                self.path.rmdir()
+        self.release()
 
     def __enter__(self) -> RunLock:
         return self

@@ -23,6 +23,13 @@ def make_small_scene(folder: Path, shape: str = "box") -> Path:
     return folder
 
 
+def finished_run(scene: Path, out: Path) -> Path:
+    """`edgedog train SCENE --out OUT` with QUICK_TRAIN, checked to finish: a run for tests to copy."""
+    trained = edgedog("train", scene, "--out", out, *QUICK_TRAIN)
+    assert trained.returncode == 0, trained.stderr
+    return out
+
+
 def tiny_config(**changes) -> TrainConfig:
     """Two epochs at 100 px from 300 uniform points, with `changes` (settings by bare or old flat
     name) applied."""
