@@ -16,7 +16,9 @@ written to.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import hashlib
+from collections.abc import Callable
 from pathlib import Path
 
 import cv2
@@ -60,8 +62,9 @@ def _undistorted_view(view: View, folder: Path, damaged: dict[Path, str]) -> Vie
     if problem:  # a distortion so strong (or so odd) that no pinhole camera sees the whole image
         raise InputError(view.image_path, f"cannot be undistorted ({view.distortion.model} distortion "
                                           f"{view.distortion.coefficients}): the undistorted {problem}")
-    maps = undistortion_maps(camera.K, view.distortion, new_K, camera.width, camera.height)
     size = (camera.width, camera.height)
+    # Built only when a file is not in the cache yet (a scene loads many times, undistorts once).
+    maps = functools.cache(lambda: undistortion_maps(camera.K, view.distortion, new_K, *size))
 
     def moved(path: Path | None, kind: str) -> Path | None:
         return None if path is None else _undistorted_file(path, folder / kind / view.name, maps, size)
@@ -74,14 +77,15 @@ def _undistorted_view(view: View, folder: Path, damaged: dict[Path, str]) -> Vie
                                distortion=None)
 
 
-def _undistorted_file(source: Path, stem: Path, maps: tuple[np.ndarray, np.ndarray],
+def _undistorted_file(source: Path, stem: Path, maps: Callable[[], tuple[np.ndarray, np.ndarray]],
                       size: tuple[int, int]) -> Path:
     """`source` undistorted into `stem`.png (8 or 16 bit, as stored) or `stem`.tiff (float
-    images), written unless it is there already; returns that file."""
+    images) through `maps()` (see `undistortion_maps`), written unless it is there already;
+    returns that file."""
     for suffix in (".png", ".tiff"):
         if (stem.parent / f"{stem.name}{suffix}").is_file():
             return stem.parent / f"{stem.name}{suffix}"
-    image = undistort(read_raw(source, size), maps)
+    image = undistort(read_raw(source, size), maps())
     target = stem.parent / f"{stem.name}{'.png' if np.issubdtype(image.dtype, np.integer) else '.tiff'}"
     if image.ndim == 3:  # read_raw gives RGB(A); OpenCV writes BGR(A)
         image = cv2.cvtColor(image, cv2.COLOR_RGB2BGR if image.shape[2] == 3 else cv2.COLOR_RGBA2BGRA)
