@@ -2,9 +2,11 @@
 
 Each image is capped at 134 megapixels when a scene loads, but not their sum: 12 views of 11000 px
 square pass one by one and then exhaust the memory while training prepares its targets. A run
-keeps every view's edge map and edge mask (at the run's downscale) for the whole training, and
-works on one view at a time on top of them (its image decoded, its silhouette's distance
-transform, the rasterizer's buffers); both are estimated here from the views' sizes alone.
+keeps every view's targets and masks (at the run's downscale) for the whole training, and reads
+one view's files at a time at their own resolution; both are estimated here from the views'
+sizes alone, with bytes per pixel measured (peak RSS of `train --preset preview --set epochs=1`
+on 12 views of 1536 px square, less that of a 96 px scene: 2.0 GB at downscale 1, 490 MB at 2,
+195 MB at 4; the estimate gives 2.1 GB, 585 MB and 202 MB).
 """
 
 from __future__ import annotations
@@ -19,13 +21,12 @@ from edgedog.train.config import MAX_DOWNSCALE
 if TYPE_CHECKING:  # the scene readers load only when a scene is
     from edgedog.scenes import Scene
 
-KEPT_BYTES_PER_PIXEL = 12
-"""Bytes per pixel of every view kept while training: the edge map as read and as targeted
-(float32 each), its edge mask and the coarse level's copies."""
-WORKING_BYTES_PER_PIXEL = 64
-"""Bytes per pixel of the one view being worked on: its decoded RGB(A) image and float copies,
-the silhouette's distance transforms, the rendered image, its gradients and the rasterizer's
-per-pixel buffers."""
+KEPT_BYTES_PER_PIXEL = 72
+"""Bytes per training pixel of every view, kept while training (measured 69-74): its maps as read
+and as targeted, masks, silhouette buffers and the per-view tensors of the trainer."""
+WORKING_BYTES_PER_FILE_PIXEL = 32
+"""Bytes per pixel, at the files' resolution, of the one view being read (measured about 29): the
+decoded map or image and its float copies before the downscale."""
 MEMORY_SHARE = 0.5
 """The share of the machine's memory (or of the process's address-space limit, `ulimit -v`,
 when lower) that a run's views may take; the rest is left to torch, the primitives and others."""
@@ -44,7 +45,8 @@ def memory_limit() -> int:
 def views_memory(scene: Scene, downscale: int) -> int:
     """Estimated bytes for training on `scene`'s views at `downscale` (of the files' size)."""
     pixels = [(view.camera.width // downscale) * (view.camera.height // downscale) for view in scene.views]
-    return sum(pixels) * KEPT_BYTES_PER_PIXEL + max(pixels, default=0) * WORKING_BYTES_PER_PIXEL
+    largest_file = max((view.camera.width * view.camera.height for view in scene.views), default=0)
+    return sum(pixels) * KEPT_BYTES_PER_PIXEL + largest_file * WORKING_BYTES_PER_FILE_PIXEL
 
 
 def check_memory(scene: Scene, downscale: int, limit: int | None = None) -> None:
