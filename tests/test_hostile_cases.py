@@ -398,3 +398,19 @@ def test_views_beyond_the_memory_budget_are_refused_with_the_downscale_that_fits
     assert not (tmp_path / "new-run").exists()
     needed = [memory.views_memory(load_scene(SCENE), downscale) for downscale in (1, 3, 4)]
     assert needed[2] <= 1_000_000 < needed[1] < needed[0]
+
+
+def test_ray_that_cannot_start_is_one_line(tmp_path, monkeypatch):
+    """BA-nonempty-out under `ulimit -v`: Ray failing to start was a traceback (here its start
+    raises the MemoryError that the address-space limit gave)."""
+    from types import SimpleNamespace
+
+    from edgedog.batch import executors
+
+    def no_memory(**_):
+        raise MemoryError("std::bad_alloc")
+
+    monkeypatch.setattr(executors, "import_ray", lambda: SimpleNamespace(init=no_memory))
+    case = Case("BA-ray-start", lambda folder: (batch_into(folder / "out"),
+                                                ["cannot start Ray (MemoryError: std::bad_alloc)"]))
+    assert_fails_cleanly(case, tmp_path)

@@ -141,9 +141,9 @@ class RayExecutor:
                 ray.init(include_dashboard=False, **quiet)
             else:
                 ray.init(address=self.address, **quiet)
-        except (ConnectionError, ValueError, RuntimeError) as error:
+        except Exception as error:  # Ray's own and the OS's (no memory under ulimit -v, no sockets)
             where = f"--address {self.address}: cannot join Ray" if self.address else "cannot start Ray"
-            raise ConfigError(f"{where} ({' '.join(str(error).split())})") from None
+            raise ConfigError(f"{where} ({type(error).__name__}: {' '.join(str(error).split())})") from None
 
 
 @contextmanager
