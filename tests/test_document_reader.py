@@ -2,9 +2,8 @@
 hypothesis, and the bounds themselves (size, depth, digits, finite numbers, devices and FIFOs).
 
 Every property: a file holding anything ends in its value or in one InputError line naming it,
-never another exception. Hypothesis runs derandomized (the same examples on every run, CI
-included) with EXAMPLES examples per property; set EDGEDOG_FUZZ_EXAMPLES for a larger budget
-(`EDGEDOG_FUZZ_EXAMPLES=5000 pytest tests/test_document_reader.py --hypothesis-show-statistics`).
+never another exception. Hypothesis runs derandomized (tests/helpers/fuzz.py: the same examples on
+every run, CI included; EDGEDOG_FUZZ_EXAMPLES for a larger budget).
 """
 
 from __future__ import annotations
@@ -16,15 +15,12 @@ from pathlib import Path
 
 import pytest
 import yaml
-from hypothesis import HealthCheck, given, settings
+from hypothesis import given
 from hypothesis import strategies as st
 
 from edgedog.errors import InputError
 from edgedog.files import MAX_DEPTH, MAX_DOCUMENT_BYTES, MAX_INT_DIGITS, read_bounded, read_json, read_yaml
-
-EXAMPLES = int(os.environ.get("EDGEDOG_FUZZ_EXAMPLES", "150"))
-FUZZ = settings(max_examples=EXAMPLES, derandomize=True, deadline=None, database=None,
-                suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+from tests.helpers.fuzz import FUZZ, read_or_refuse
 
 # Plain data as edgedog's files hold it: finite floats, integers of at most MAX_INT_DIGITS digits.
 SCALARS = (st.none() | st.booleans() | st.text(max_size=20)
@@ -44,17 +40,6 @@ TOKEN_TEXT = st.lists(TOKENS, max_size=60).map("".join)
 def folder(tmp_path_factory) -> Path:
     """One folder for every example of the module: hypothesis reruns a test many times."""
     return tmp_path_factory.mktemp("documents")
-
-
-def read_or_refuse(read, path: Path, content: bytes):
-    """`read(path)` of a file holding `content`: its value, or None after checking that the
-    refusal is one InputError line naming the file."""
-    path.write_bytes(content)
-    try:
-        return read(path)
-    except InputError as error:
-        assert str(error).startswith(f"{path}: ") and "\n" not in str(error), str(error)
-        return None
 
 
 def depth(value) -> int:

@@ -1,0 +1,122 @@
+"""Property tests of the readers a user's file reaches beyond JSON and YAML (those are in
+test_document_reader.py): predicted edges (.obj, .ply, EMAP .json), primitives PLY, a NeRF scene's
+transforms and a run's checkpoint. Whatever the file holds, each ends in a value or in one
+InputError line naming a file, never another exception.
+
+Derandomized like test_document_reader.py (EXAMPLES examples per property, EDGEDOG_FUZZ_EXAMPLES
+for more); the inputs mix a valid file's pieces with hostile ones, which reach further into a
+reader than random bytes do.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from edgedog.curve_files import read_edges
+from edgedog.errors import InputError
+from edgedog.primitives import read_ply
+from edgedog.scenes import load_scene
+from edgedog.train.checkpoint import read_checkpoint
+from tests.helpers.fuzz import FUZZ, read_or_refuse
+from tests.helpers.scene_builders import make_nerf, nerf_meta
+
+NUMBERS = st.sampled_from(["0", "1", "-1", "0.5", "1e308", "-1e308", "nan", "inf", "1e-320", "999999999999",
+                           "-0", "3", "2", "a", "", "1.5.5", "0x10"])
+
+
+@pytest.fixture(scope="module")
+def folder(tmp_path_factory) -> Path:
+    """One folder for every example of the module: hypothesis reruns a test many times."""
+    return tmp_path_factory.mktemp("fuzzed-files")
+
+
+def obj_lines(numbers: list[str], kinds: list[str]) -> str:
+    """OBJ text: `v`, `l` and other records of the given numbers."""
+    lines, rest = [], iter(numbers)
+    for kind in kinds:
+        lines.append(" ".join([kind, *(next(rest, "1") for _ in range(3 if kind == "v" else 2))]))
+    return "\n".join(lines) + "\n"
+
+
+@FUZZ
+@given(numbers=st.lists(NUMBERS, max_size=40),
+       kinds=st.lists(st.sampled_from(["v", "l", "f", "#", "o", "vt", "g", "l 1 2 3 4"]), max_size=15))
+def test_obj_of_any_records_is_curves_or_one_line(folder, numbers, kinds):
+    read_or_refuse(read_edges, folder / "edges.obj", obj_lines(numbers, kinds).encode())
+
+
+PLY_HEADERS = st.sampled_from([
+    "ply\nformat ascii 1.0\nelement vertex {n}\nproperty float x\nproperty float y\nproperty float z\n"
+    "element edge {m}\nproperty int vertex1\nproperty int vertex2\nend_header\n",
+    "ply\nformat ascii 1.0\nelement vertex {n}\nproperty float x\nproperty float y\nproperty float z\n"
+    "end_header\n",
+    "ply\nformat binary_little_endian 1.0\nelement vertex {n}\nproperty float x\nproperty float y\n"
+    "property float z\nend_header\n",
+    "ply\nformat ascii 1.0\nelement vertex {n}\nproperty list uchar float x\nend_header\n",
+    "ply\nformat ascii 1.0\nelement face {n}\nproperty float x\nend_header\n",
+])
+
+
+@FUZZ
+@given(header=PLY_HEADERS, n=st.sampled_from(["0", "1", "2", "-1", "100000000000", "x"]),
+       m=st.sampled_from(["0", "1", "-5", "99999999999"]), numbers=st.lists(NUMBERS, max_size=30),
+       tail=st.binary(max_size=40))
+def test_ply_of_any_header_and_body_is_read_or_one_line(folder, header, n, m, numbers, tail):
+    content = header.format(n=n, m=m).encode() + " ".join(numbers).encode() + b"\n" + tail
+    read_or_refuse(read_edges, folder / "edges.ply", content)
+    read_or_refuse(read_ply, folder / "primitives.ply", content)
+
+
+@FUZZ
+@given(key=st.sampled_from(["curves_ctl_pts", "lines_end_pts", "other"]),
+       value=st.recursive(st.sampled_from([0, 1.5, -1e300, "x", None, True, 10**30]),
+                          lambda inner: st.lists(inner, max_size=13), max_leaves=60))
+def test_emap_curves_of_any_shape_are_curves_or_one_line(folder, key, value):
+    read_or_refuse(read_edges, folder / "edges.json", json.dumps({key: value}).encode())
+
+
+@pytest.fixture(scope="module")
+def nerf_scene(tmp_path_factory) -> Path:
+    return make_nerf(tmp_path_factory.mktemp("fuzz-scene") / "scene")
+
+
+FIELDS = st.sampled_from(["camera_angle_x", "frames", "file_path", "transform_matrix", "fl_x", "w", "h",
+                          "camera_intrinsics", "aabb", "near"])
+VALUES = st.recursive(st.sampled_from([0, 1, -1, 0.7, 1e300, "r_0", "../../etc/passwd", "", None, [], {}]),
+                      lambda inner: st.lists(inner, max_size=5) | st.dictionaries(FIELDS, inner, max_size=3),
+                      max_leaves=30)
+
+
+@FUZZ
+@given(edits=st.lists(st.tuples(st.sampled_from(["top", "frame"]), FIELDS, VALUES), min_size=1, max_size=4))
+def test_nerf_transforms_with_any_field_changed_load_or_give_one_line(nerf_scene, edits):
+    meta = nerf_meta(nerf_scene)
+    for where, field, value in edits:
+        target = meta["frames"][0] if where == "frame" and meta.get("frames") and \
+            isinstance(meta["frames"], list) and isinstance(meta["frames"][0], dict) else meta
+        target[field] = value
+    transforms = nerf_scene / "transforms_train.json"
+    original = transforms.read_bytes()
+    try:
+        transforms.write_text(json.dumps(meta))
+        try:
+            load_scene(nerf_scene)
+        except InputError as error:
+            assert "\n" not in str(error), str(error)
+    finally:
+        transforms.write_bytes(original)
+
+
+@FUZZ
+@given(content=st.binary(max_size=2000), zip_header=st.booleans())
+def test_a_checkpoint_of_any_bytes_is_refused_in_one_line(folder, content, zip_header):
+    path = folder / "checkpoint.pt"
+    path.write_bytes((b"PK\x03\x04" if zip_header else b"") + content)
+    with pytest.raises(InputError) as refused:
+        read_checkpoint(path)
+    assert str(refused.value).startswith(f"{path}: ") and "\n" not in str(refused.value)
