@@ -120,3 +120,38 @@ def test_a_checkpoint_of_any_bytes_is_refused_in_one_line(folder, content, zip_h
     with pytest.raises(InputError) as refused:
         read_checkpoint(path)
     assert str(refused.value).startswith(f"{path}: ") and "\n" not in str(refused.value)
+
+
+SETTING_VALUES = st.recursive(st.sampled_from([0, 1, -1, 0.5, 1e300, 10**30, "x", "", None, True, "auto",
+                                               "canny", "full"]),
+                              lambda inner: st.lists(inner, max_size=4)
+                              | st.dictionaries(st.sampled_from(["maps", "schedule", "epochs", "downscale",
+                                                                 "init", "count", "x"]), inner, max_size=4),
+                              max_leaves=25)
+
+
+@FUZZ
+@given(config=SETTING_VALUES, scene=st.sampled_from(["scene", 5, None]),
+       version=st.sampled_from([1, 2, 3, 99, "3", None]),
+       fingerprints=st.sampled_from([{}, {"scene_fingerprint": 5}, {"maps_fingerprint": "abc"}]))
+def test_a_run_config_of_any_settings_is_a_run_or_one_line(folder, config, scene, version, fingerprints):
+    from edgedog.train.run_folder import read_run
+
+    run = folder / "run"
+    run.mkdir(exist_ok=True)
+    data = {"format": "edgedog-run", "version": version, "scene": scene, "config": config, **fingerprints}
+    read_or_refuse(lambda path: read_run(path.parent), run / "config.json", json.dumps(data).encode())
+
+
+@FUZZ
+@given(suite=st.dictionaries(st.sampled_from(["scenes", "presets", "grid", "rows", "seeds", "set", "other"]),
+                             SETTING_VALUES, max_size=5))
+def test_a_suite_of_any_keys_is_a_suite_or_one_line(folder, suite):
+    import yaml
+
+    from edgedog.batch.suite import expand, load_suite
+
+    def load(path):
+        return expand(load_suite(path))
+
+    read_or_refuse(load, folder / "suite.yaml", yaml.safe_dump(suite).encode())
