@@ -121,6 +121,7 @@ def test_network_runs_only_plain_convolutions():
 def test_the_shipped_weights_are_the_official_bsds_file_with_its_licence():
     import hashlib
     import importlib.resources
+
     import tomllib
 
     resource = importlib.resources.files("edgedog.edges") / "weights"
