@@ -161,25 +161,11 @@ void walk_tile_backwards(const Splats& s, const Frame& f, const TileView& tiles,
   }
 }
 
-enum GradSlot {
-  kMeanX,
-  kMeanY,
-  kAbsMeanX,
-  kAbsMeanY,
-  kConicA,
-  kConicB,
-  kConicC,
-  kOpacity,
-  kA,
-  kT,
-  kDepth,
-  kColors
-};
-
 }  // namespace
 
 void rasterize_backward(const Splats& s, const Frame& f, const TileView& tiles, const float* final_T,
                         const int32_t* last, const RasterGradOutputs& go, const SplatGrads& grads) {
+  using namespace splat;  // the gradient slots, kMeanX ... kColors
   const int num_tiles = tiles.tiles_x * tiles.tiles_y;
   const int C = s.channels;
   const int64_t per = kColors + C;

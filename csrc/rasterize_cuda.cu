@@ -133,22 +133,7 @@ __device__ void walk_tile_backwards(const Splats& s, const Frame& f, const TileV
   }
 }
 
-// Gradient slots of one primitive, summed over a warp's pixels.
-enum GradSlot {
-  kMeanX,
-  kMeanY,
-  kAbsMeanX,
-  kAbsMeanY,
-  kConicA,
-  kConicB,
-  kConicC,
-  kOpacity,
-  kA,
-  kT,
-  kDepth,
-  kColors
-};
-constexpr int kSlots = kColors + kMaxChannels;
+constexpr int kSlots = splat::kColors + kMaxChannels;  // a primitive's gradient slots (splat::GradSlot)
 
 struct GradientVisit {
   Splats s;
@@ -157,6 +142,7 @@ struct GradientVisit {
 
   __device__ void operator()(const Staged& p, const PixelHit& h, bool hit, const Pixel& me, float T,
                              const float* behind_color, const Behind& behind) {
+    using namespace splat;  // the gradient slots, kMeanX ... kColors
     const int C = s.channels;
     float v[kSlots];
 #pragma unroll

@@ -147,6 +147,23 @@ EDGEDOG_HD inline FootprintGrad footprint_gradient(const Footprint& fp, const Pi
   return g;
 }
 
+// Where each gradient of one primitive is summed (per thread on the CPU, per warp on CUDA),
+// the colours' C slots last.
+enum GradSlot {
+  kMeanX,
+  kMeanY,
+  kAbsMeanX,
+  kAbsMeanY,
+  kConicA,
+  kConicB,
+  kConicC,
+  kOpacity,
+  kA,
+  kT,
+  kDepth,
+  kColors
+};
+
 // (dI/dD)^2 summed over channels: the Fisher information one unclamped hit adds to its primitive.
 EDGEDOG_HD inline float fisher_term(const float* c, const float* behind_color, float T, float opacity,
                                     int channels) {
