@@ -3,7 +3,7 @@ and the help window (F1 or h) that lists them with the mouse gestures."""
 
 from __future__ import annotations
 
-from edgedog.app.worker import PAUSED, STARTING, TRAINING
+from edgedog.app.worker import FINISHING, PAUSED, STARTING, TRAINING
 from imgui_bundle import imgui
 
 SHORTCUTS = (
@@ -13,8 +13,11 @@ SHORTCUTS = (
     ("Ctrl+O", "open a scene or run folder"),
     ("Ctrl+E", "export the curves of the latest snapshot in the checked formats"),
     ("F1 or h", "show or hide this help"),
-    ("Esc or q", "close the help or the folder browser, else quit (training stops; the run keeps "
-                 "its last checkpoint)"),
+    ("Esc", "close the topmost window (the folder browser, then this help); with none open, "
+            "ask to quit"),
+    ("q", "quit (asks first while a run is under way: training stops, the run keeps its last "
+          "checkpoint)"),
+    ("Enter / Esc", "answer a question: yes / no"),
 )
 GESTURES = (
     ("left drag", "orbit the 3D view"),
@@ -30,9 +33,10 @@ def _pressed(key: imgui.Key, ctrl: bool = False) -> bool:
 
 
 def handle_keys(studio) -> None:
-    """Act on this frame's shortcuts (none while a text field has the keyboard)."""
+    """Act on this frame's shortcuts (none while a text field has the keyboard or a question
+    waits for its answer: `confirm.Confirm` reads its own keys)."""
     io, state = imgui.get_io(), studio.state
-    if io.want_text_input:
+    if io.want_text_input or studio.confirm is not None:
         return
     if _pressed(imgui.Key.space):
         phase = None if studio.worker is None else studio.worker.phase
@@ -40,24 +44,29 @@ def handle_keys(studio) -> None:
             state.request("pause")
         elif phase == PAUSED:
             state.request("resume")
+        elif phase == FINISHING:
+            state.status = "space: the run is extracting its final curves; it can start again once finished"
         else:
             state.request("start")
     if _pressed(imgui.Key.r):
         state.request("reset_view")
+    views = len(studio.session.scene)
     for index, key in enumerate(DIGITS):
-        if _pressed(key) and index < len(studio.session.scene):
+        if _pressed(key) and index < views:
             state.view = index
             state.request("snap")
+        elif _pressed(key):
+            state.status = f"{index + 1}: no such view, the scene has {views}"
     if _pressed(imgui.Key.o, ctrl=True):
         state.request("open")
     if _pressed(imgui.Key.e, ctrl=True):
         state.request("export")
     if _pressed(imgui.Key.f1) or _pressed(imgui.Key.h):
         state.request("help")
-    if _pressed(imgui.Key.escape) and (state.show_help or studio.dialog is not None):
-        state.show_help, studio.dialog = False, None  # Esc closes the help or the browser first
-    elif _pressed(imgui.Key.escape) or _pressed(imgui.Key.q):
-        state.request("close")
+    if _pressed(imgui.Key.escape) and not studio.close_top():
+        state.request("quit", ask=True)  # never quits at once: a stray Esc only asks
+    elif _pressed(imgui.Key.q):
+        state.request("quit")
 
 
 def draw_help(studio) -> None:
@@ -66,7 +75,8 @@ def draw_help(studio) -> None:
     if not state.show_help:
         return
     viewport = imgui.get_main_viewport()
-    imgui.set_next_window_pos(viewport.get_center(), imgui.Cond_.appearing, imgui.ImVec2(0.5, 0.5))
+    # Always: on its first frame an auto-resized window has no size yet to centre by.
+    imgui.set_next_window_pos(viewport.get_center(), imgui.Cond_.always, imgui.ImVec2(0.5, 0.5))
     expanded, state.show_help = imgui.begin("Help", state.show_help, imgui.WindowFlags_.always_auto_resize)
     if expanded:
         for title, rows in (("Keys", SHORTCUTS), ("Mouse", GESTURES)):

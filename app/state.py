@@ -78,7 +78,9 @@ class Request:
     """An action asked for: "open" (path; none: the folder browser), "start", "pause", "resume",
     "restart", "extract", "export" (formats, or one format; default the checked ones),
     "snap" (to the selected view), "reset_view", "help" (show or hide), "screenshot" (path),
-    "close"."""
+    "quit" (the user's: asked first while a run is under way, always with ask=True), "close"
+    (the window closes at once). "open" with a path, "restart" and "quit" that would stop a run
+    wait for the user's yes, which makes them again with confirmed=True."""
 
     name: str
     args: dict[str, Any] = field(default_factory=dict)

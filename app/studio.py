@@ -12,6 +12,7 @@ from pathlib import Path
 import moderngl
 from edgedog.app import controls_panel, inspector_panel, layout, plots_panel, shortcuts, view_panel, widgets
 from edgedog.app.colors import COLORMAPS, colorbar
+from edgedog.app.confirm import Confirm
 from edgedog.app.display import TITLE
 from edgedog.app.extraction import Extraction, extract_snapshot
 from edgedog.app.folder_dialog import FolderDialog
@@ -25,6 +26,7 @@ from edgedog.app.state import EXPORT_FORMATS, LiveSettings, Request, UIState
 from edgedog.app.textures import ImageTexture
 from edgedog.app.view3d import View3D
 from edgedog.app.worker import FINISHED, TRAINING, Published, TrainingWorker
+from imgui_bundle import imgui
 
 from edgedog.curve_files import EdgeCurves
 from edgedog.errors import EdgeDogError
@@ -34,6 +36,10 @@ INSPECT_EVERY = 1.0
 """Seconds between two inspector renders while training (they share the CPU with it)."""
 WINDOW_REQUESTS = ("screenshot", "close")
 """Requests the window acts on (it owns the framebuffer and the loop)."""
+CONFIRMED = "confirmed"
+"""The argument a request carries once the user has confirmed it (see `Studio._go_ahead`)."""
+FOCUS_WINDOW = "3D view"
+"""The panel that takes imgui's focus back whenever a window over the panels closes."""
 
 
 class Studio:
@@ -58,6 +64,9 @@ class Studio:
         self.stop_seconds: float | None = None
         self.frames = 0
         self.dialog: FolderDialog | None = None
+        self.confirm: Confirm | None = None
+        """The question asked before stopping a run (quit, Restart, open), while it waits."""
+        self._overlays: set[str] = set()
         self._open(session)
 
     # --- sessions and runs
@@ -107,8 +116,30 @@ class Studio:
         return self.worker is not None and self.worker.phase == TRAINING
 
     @property
+    def running(self) -> bool:
+        """Whether a run is under way (setting up, training, paused or extracting its final curves):
+        what quitting, Restart or opening another folder would stop."""
+        return self.worker is not None and self.worker.alive
+
+    @property
     def latest(self) -> Published | None:
         return None if self.worker is None else self.worker.latest
+
+    @property
+    def overlays(self) -> set[str]:
+        """The windows open over the panels: 'help', 'browser', 'confirm'."""
+        return {name for name, shown in (("help", self.state.show_help), ("browser", self.dialog is not None),
+                                         ("confirm", self.confirm is not None)) if shown}
+
+    def close_top(self) -> bool:
+        """Close the topmost of the folder browser and the help (Esc); whether one was open."""
+        if self.dialog is not None:
+            self.dialog = None
+        elif self.state.show_help:
+            self.state.show_help = False
+        else:
+            return False
+        return True
 
     # --- one frame
     def frame(self) -> list[Request]:
@@ -133,10 +164,16 @@ class Studio:
         if request.name in WINDOW_REQUESTS:
             return False
         try:
-            if request.name == "open":
-                self._request_open(request.args.get("path"))
-            elif request.name in ("start", "restart"):
-                self._start(fresh=request.name == "restart")
+            if request.name == "quit":
+                self._quit(request)
+            elif request.name == "open":
+                self._request_open(request)
+            elif request.name == "restart" and self._go_ahead(
+                    request, "Stop this run and train a new run folder? It keeps its last checkpoint.",
+                    "Restart"):
+                self._start(fresh=True)
+            elif request.name == "start":
+                self._start(fresh=False)
             elif request.name in ("pause", "resume") and self.worker is not None:
                 self.worker.update_controls(paused=request.name == "pause")
             elif request.name in ("extract", "export") and self.latest is None:
@@ -155,10 +192,30 @@ class Studio:
             self.state.status = f"error: {error}"
         return True
 
-    def _request_open(self, path: str | None) -> None:
-        """Open `path`, or show the folder browser when None."""
+    def _go_ahead(self, request: Request, question: str, yes: str, ask: bool = False) -> bool:
+        """Whether `request` may act now: at once when it stops no run (and `ask` is False) or once
+        confirmed; otherwise the question is asked, and a yes makes the request again, confirmed."""
+        if request.args.get(CONFIRMED) or not (ask or self.running):
+            return True
+        self.confirm = Confirm(question, yes, Request(request.name, {**request.args, CONFIRMED: True}))
+        return False
+
+    def _quit(self, request: Request) -> None:
+        """q, Esc with nothing open (`ask`: it always asks) or the window's close button."""
+        question = ("Stop training and quit? The run keeps its last checkpoint." if self.running
+                    else "Quit EdgeDoG Studio?")
+        if self._go_ahead(request, question, "Quit", ask=request.args.get("ask", False)):
+            self.state.request("close")
+
+    def _request_open(self, request: Request) -> None:
+        """Open the request's path (once confirmed while a run is under way), or show the folder
+        browser when it has none."""
+        path = request.args.get("path")
         if path is None:
             self.dialog = FolderDialog(self.session.opened)
+            return
+        if not self._go_ahead(request, f"Stop this run and open {path}? It keeps its last checkpoint.",
+                              "Open"):
             return
         session = Session.open(path, self.runs_root, self.state.restart.preset, self.session.overrides)
         self.session.stop()
@@ -310,6 +367,20 @@ class Studio:
         controls_panel.draw_status(self, areas["status"])
         shortcuts.draw_help(self)
         self._draw_dialog()
+        self._draw_confirm()
+        overlays = self.overlays
+        if self._overlays - overlays:  # one closed: the keys go to the panels again
+            imgui.set_window_focus(FOCUS_WINDOW)
+        self._overlays = overlays
+
+    def _draw_confirm(self) -> None:
+        if self.confirm is None:
+            return
+        answer = self.confirm.draw()
+        if answer:
+            self.state.requests.append(self.confirm.request)
+        if answer is not None:
+            self.confirm = None
 
     @property
     def title(self) -> str:
@@ -340,6 +411,7 @@ class Studio:
                  "frames": self.frames, "view_renders": self.view.renders, "cpu_seconds": time.process_time(),
                  "help": self.state.show_help,
                  "dialog": None if self.dialog is None else str(self.dialog.path),
+                 "confirm": None if self.confirm is None else self.confirm.question,
                  "title": self.title}
         controls = None if worker is None else worker.trainer_controls()
         facts.update({f"controls.{name}": value for name, value in (controls or {}).items()})

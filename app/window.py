@@ -74,6 +74,12 @@ def _loop(window, ctx: moderngl.Context, studio: Studio, driver: ScriptDriver | 
         glfw.wait_events_timeout(max(0.0, 1 / fps - (time.perf_counter() - started)))
 
 
+def _ask_to_quit(window, studio: Studio) -> None:
+    """The window's close button: a quit as q's (asked first while a run is under way)."""
+    glfw.set_window_should_close(window, False)
+    studio.state.request("quit")
+
+
 def run_studio(session: Session, runs_root: Path | None = None, script: Path | None = None,
                size: tuple[int, int] = (1600, 1000)) -> int:
     """Open the window on `session` and run until it is closed; returns the exit status (1 when
@@ -92,6 +98,7 @@ def run_studio(session: Session, runs_root: Path | None = None, script: Path | N
         imgui.backends.opengl3_init(f"#version {GL_VERSION}")
         studio = Studio(ctx, session, runs_root)
         glfw.set_drop_callback(window, lambda _window, paths: studio.state.request("open", path=paths[0]))
+        glfw.set_window_close_callback(window, lambda _window: _ask_to_quit(window, studio))
         try:
             _loop(window, ctx, studio, driver, watch)
         finally:

@@ -6,8 +6,10 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import cv2
@@ -19,6 +21,7 @@ pytestmark = pytest.mark.xvfb
 
 FAST = ["--set", "init_count=300", "--set", "checkpoint_every=1"]
 """Settings of the scripted runs: few primitives, a checkpoint every epoch."""
+OPEN_QUESTION = "Stop this run and open {}? It keeps its last checkpoint."
 
 
 @pytest.fixture(scope="module")
@@ -37,6 +40,50 @@ def run_script(actions: list[dict], args: list, display: str, folder: Path, size
                             capture_output=True, text=True, timeout=180)
     outcome = json.loads(report.read_text()) if report.is_file() else {}
     return result, outcome
+
+
+@pytest.fixture
+def window_manager(xvfb_display) -> str:
+    """The display with openbox managing its windows, so that xdotool's keys reach the focused
+    window as a keyboard's do (skipped without openbox or xdotool)."""
+    if shutil.which("openbox") is None or shutil.which("xdotool") is None:
+        pytest.skip("openbox and xdotool are not installed")
+    manager = subprocess.Popen(["openbox"], env={**os.environ, "DISPLAY": xvfb_display},
+                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        yield xvfb_display
+    finally:
+        manager.terminate()
+        manager.wait()
+
+
+def run_with_keys(actions: list[dict], keys: list[str | float], args: list, display: str, folder: Path
+                  ) -> tuple[subprocess.CompletedProcess, dict]:
+    """As `run_script`, while xdotool types `keys` into the window: a key name (X's, e.g. "F1",
+    "Escape", "ctrl+o"), or seconds to wait. The script's expectations follow what they do."""
+    report, script = folder / "report.json", folder / "script.json"
+    script.write_text(json.dumps({"report": str(report), "actions": actions}))
+    env = {**os.environ, "DISPLAY": display}
+    studio = subprocess.Popen([sys.executable, "-m", "edgedog", "studio", *map(str, args), "--script", script,
+                               "--size", "1280x800"], env=env, cwd=folder, stdout=subprocess.PIPE,
+                              stderr=subprocess.PIPE, text=True)
+    try:
+        found = subprocess.run(["xdotool", "search", "--sync", "--name", "EdgeDoG Studio"], env=env,
+                               capture_output=True, text=True, timeout=120)
+        window = found.stdout.split()[0]
+        subprocess.run(["xdotool", "windowactivate", "--sync", window], env=env, timeout=30)
+        for key in keys:
+            if isinstance(key, (int, float)):
+                time.sleep(key)
+            elif studio.poll() is None:
+                subprocess.run(["xdotool", "key", "--clearmodifiers", key], env=env, timeout=30)
+        out, err = studio.communicate(timeout=180)
+    finally:
+        if studio.poll() is None:
+            studio.kill()
+            studio.wait()
+    outcome = json.loads(report.read_text()) if report.is_file() else {}
+    return subprocess.CompletedProcess(studio.args, studio.returncode, out, err), outcome
 
 
 def assert_ok(result: subprocess.CompletedProcess, outcome: dict) -> dict:
@@ -104,7 +151,9 @@ def test_the_mouse_and_the_keys_drive_the_view_the_run_and_the_panels(box, xvfb_
         {"click": "Open..."},
         {"expect": {"dialog": str(box.parent)}, "timeout": 5},
         {"click": "Open"},  # the browser starts on the open scene's folder, the scene selected
-        {"expect": {"dialog": None, "runs": 0, "status": f"opened {box}"}, "timeout": 10},
+        {"expect": {"dialog": None, "confirm": OPEN_QUESTION.format(box)}, "timeout": 10},
+        {"key": "enter"},
+        {"expect": {"confirm": None, "runs": 0, "status": f"opened {box}"}, "timeout": 10},
         {"key": "ctrl+o"},
         {"expect": {"dialog": str(box.parent)}, "timeout": 5},
         {"key": "escape"},
@@ -174,3 +223,58 @@ def test_a_layered_run_trains_filters_its_curves_by_layer_exports_per_layer_and_
               {"request": "close"}]
     probe = assert_ok(*run_script(reopen, [run], xvfb_display, tmp_path))
     assert probe["runs"] == 0 and probe["title"] == f"box - {run.name} - EdgeDoG Studio"
+
+
+KEY_PAUSE = 2.0
+"""Seconds between two real keys: a few frames even while the window draws slowly (training)."""
+
+
+def test_real_keys_close_the_topmost_window_and_quitting_asks_first(box, window_manager, tmp_path):
+    # Issue 40: after F1 then Esc, Ctrl+O must open the browser; Esc must close it and never quit;
+    # Esc with nothing open and q while a run trains only ask (Esc: no).
+    actions = [{"request": "start"}, {"expect": {"phase": "training"}, "timeout": 60},
+               {"expect": {"help": True}, "timeout": 60},
+               {"expect": {"help": False}, "timeout": 20},
+               {"expect": {"dialog": str(box.parent)}, "timeout": 20},
+               {"expect": {"dialog": None, "confirm": None}, "timeout": 20},
+               {"expect": {"confirm": "Stop training and quit? The run keeps its last checkpoint."},
+                "timeout": 20},
+               {"expect": {"confirm": None, "phase": "training"}, "timeout": 20},
+               {"expect": {"confirm": [">", ""]}, "timeout": 20},  # q asks too
+               {"expect": {"confirm": None, "phase": "training"}, "timeout": 20},
+               {"mark": "answered"},
+               {"request": "close"}]
+    keys = [8.0, "F1", KEY_PAUSE, "Escape", KEY_PAUSE, "ctrl+o", KEY_PAUSE, "Escape", KEY_PAUSE, "Escape",
+            KEY_PAUSE, "Escape", KEY_PAUSE, "q", KEY_PAUSE, "Escape"]
+    result, outcome = run_with_keys(actions, keys, [box, "--runs", tmp_path / "runs", "--set", "epochs=5000",
+                                                    *FAST], window_manager, tmp_path)
+    probe = assert_ok(result, outcome)
+    assert probe["phase"] == "stopped" and "answered" in outcome["marks"]
+
+
+def test_restart_and_open_while_training_ask_and_a_stray_q_keeps_the_run(box, xvfb_display, tmp_path):
+    restart = "Stop this run and train a new run folder? It keeps its last checkpoint."
+    actions = [
+        {"request": "start"},
+        {"key": "q"},  # during the set-up, or just after: asked, not quit
+        {"expect": {"confirm": "Stop training and quit? The run keeps its last checkpoint."}, "timeout": 10},
+        {"key": "escape"},
+        {"expect": {"confirm": None, "phase": "training", "steps": [">", 20]}, "timeout": 60},
+        {"mark": "kept"},
+        {"click": "Restart"},
+        {"expect": {"confirm": restart}, "timeout": 10},
+        {"key": "escape"},
+        {"expect": {"confirm": None, "runs": 1, "phase": "training"}, "timeout": 10},
+        {"request": "open", "path": str(box)},  # as a folder dropped on the window
+        {"expect": {"confirm": OPEN_QUESTION.format(box)}, "timeout": 10},
+        {"key": "escape"},
+        {"expect": {"confirm": None, "runs": 1, "phase": "training"}, "timeout": 10},
+        {"click": "Restart"},
+        {"expect": {"confirm": restart}, "timeout": 10},
+        {"key": "enter"},
+        {"expect": {"confirm": None, "runs": 2}, "timeout": 10},
+        {"request": "close"}]
+    result, outcome = run_script(actions, [box, "--runs", tmp_path / "runs", "--set", "epochs=5000", *FAST],
+                                 xvfb_display, tmp_path)
+    assert assert_ok(result, outcome)["runs"] == 2
+    assert (Path(outcome["marks"]["kept"]["run_dir"]) / "checkpoint.pt").is_file()  # the stray q lost nothing
