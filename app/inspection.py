@@ -17,6 +17,7 @@ from edgedog.renderer.config import RasterConfig
 from edgedog.renderer.primitives import Primitives, RasterCamera
 from edgedog.renderer.rasterize import rasterize
 
+from edgedog.edges.cache import attach_edge_maps
 from edgedog.scenes import Scene
 from edgedog.train import losses
 
@@ -57,6 +58,8 @@ def inspect_view(snapshot, scene: Scene, view: int, detector: str | None, raster
     image = np.clip(scene.load_image(view) * 255, 0, 255).round().astype(np.uint8)
     inputs = [Inspector(NAMES[0], with_alpha(image))]
     if detector is not None:
+        # A resumed layered run trains one layer: the maps of those below were never loaded here.
+        attach_edge_maps(scene, detector)
         inputs.append(_scalar(NAMES[1], scene.load_edge_map(view, detector), "gray", 0.0, 1.0))
     if snapshot is None:
         return inputs

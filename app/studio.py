@@ -85,6 +85,8 @@ class Studio:
 
     def _reset_run(self) -> None:
         self.inspectors: list[Inspector] = []
+        self.inspected_layers: str | None = None
+        """The layers the inspectors show, e.g. 'L0+L1'."""
         self.extraction: Extraction | None = None
         self.fscores: list[tuple[float, dict[int, float]]] = []
         self._applied_live: LiveSettings | None = None  # pushed to the next worker at once
@@ -262,10 +264,11 @@ class Studio:
         return done.key[:2] == self.run_token
 
     def _show_inspectors(self, done: Done) -> None:
-        if done.error:
+        if done.error:  # no images rather than those of other layers or another view
+            self.inspectors, self.inspected_layers = [], None
             self.state.status = f"inspectors: {done.error}"
             return
-        self.inspectors = done.value
+        self.inspectors, self.inspected_layers = done.value, "+".join(done.key[-1])
         for texture, inspector in zip(self.textures, self.inspectors):
             texture.set(inspector.rgba)
 
@@ -398,7 +401,8 @@ class Studio:
                  "error": None if worker is None else worker.error,
                  "version": None if self.latest is None else self.latest.version,
                  "splats_uploaded": self.view.splats.count, "splats_drawn": self.view.drawn,
-                 "inspectors": len(self.inspectors), "exports": len(self.exports),
+                 "inspectors": len(self.inspectors), "inspected_layers": self.inspected_layers,
+                 "exports": len(self.exports),
                  "export_paths": [str(path) for path in self.exports],
                  "fscores": len(self.fscores), "status": self.state.status,
                  "run_dir": None if worker is None or worker.info is None else str(worker.info.run_dir),

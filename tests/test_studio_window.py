@@ -278,3 +278,24 @@ def test_restart_and_open_while_training_ask_and_a_stray_q_keeps_the_run(box, xv
                                  xvfb_display, tmp_path)
     assert assert_ok(result, outcome)["runs"] == 2
     assert (Path(outcome["marks"]["kept"]["run_dir"]) / "checkpoint.pt").is_file()  # the stray q lost nothing
+
+
+def test_every_layer_combination_of_a_resumed_layered_run_draws(box, xvfb_display, tmp_path):
+    # Issue 40, defect 2: a layered run stopped while L1 trains, reopened and resumed, trains only
+    # L1; showing L0 alone needs L0's maps (Canny 150,300), never loaded by this process.
+    first = [{"set": {"restart.layers": 2}}, {"request": "start"},
+             {"expect": {"layers": ["L0", "L1"], "steps": [">", 6 * 8 + 2 * 8]}, "timeout": 120},
+             {"request": "close"}]
+    probe = assert_ok(*run_script(first, [box, "--runs", tmp_path / "runs", "--set", "epochs=6", *FAST],
+                                  xvfb_display, tmp_path))
+    assert probe["phase"] == "stopped"
+    run = Path(probe["run_dir"]).parent
+    resume = [{"request": "start"}, {"expect": {"phase": "training"}, "timeout": 60}, {"request": "pause"},
+              {"expect": {"phase": "paused", "layers": ["L0", "L1"], "inspected_layers": "L0+L1"},
+               "timeout": 30}]
+    for shown, drawn in (({"L0": True, "L1": False}, "L0"), ({"L0": False, "L1": True}, "L1"),
+                         ({"L0": False, "L1": False}, ""), ({"L0": True, "L1": True}, "L0+L1")):
+        resume += [{"set": {f"display.layers.{name}": on for name, on in shown.items()}},
+                   {"expect": {"inspected_layers": drawn, "inspectors": 6}, "timeout": 30}]
+    probe = assert_ok(*run_script([*resume, {"request": "close"}], [run], xvfb_display, tmp_path))
+    assert probe["run_dir"] == str(run / "L1") and not probe["status"].startswith("inspectors:")
