@@ -25,7 +25,8 @@ def build_cuda() -> bool:
     wanted = os.environ.get("EDGEDOG_CUDA", "auto")
     possible = torch.version.cuda is not None and CUDA_HOME is not None
     if wanted == "1" and not possible:
-        raise RuntimeError(f"EDGEDOG_CUDA=1 but torch {torch.__version__} has no CUDA or no toolkit was found")
+        raise RuntimeError(f"EDGEDOG_CUDA=1, but torch {torch.__version__} has no CUDA "
+                           "or no CUDA toolkit was found")
     return possible and wanted != "0"
 
 
