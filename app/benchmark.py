@@ -71,7 +71,7 @@ def measure(scene: Path, seconds: float, size: str, overrides: list[str]) -> dic
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m edgedog.app.benchmark",
-                                     description=__doc__.split("\n")[0])
+                                     description=" ".join(__doc__.split("\n\n")[0].split()))
     parser.add_argument("scene", type=Path)
     parser.add_argument("--seconds", type=float, default=8.0, help="length of each phase (default 8)")
     parser.add_argument("--size", default="1280x800", help="window size (default 1280x800)")

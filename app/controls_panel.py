@@ -6,6 +6,8 @@ the next (re)start.
 
 from __future__ import annotations
 
+import math
+
 from edgedog.app import layout, widgets
 from edgedog.app.layers import layer_members, list_new_layers
 from edgedog.app.state import COLOR_MODES, EXPORT_FORMATS, KERNELS, WEIGHTING_FORMULAS, WEIGHTINGS
@@ -28,9 +30,8 @@ def _scene(studio) -> None:
     imgui.set_item_tooltip(str(session.scene_path))
     imgui.same_line()
     if widgets.button("Open...", "open a scene folder (a new run) or a run folder (to resume or "
-                      "view it) in a folder browser (Ctrl+O)", small=True):
+                      "view it) in a folder browser (Ctrl+O), or drop one on the window", small=True):
         state.request("open")
-    imgui.text_disabled("or drop a scene or run folder on the window")
     if session.run_dir is None:
         imgui.text("Run  (not started)")
     else:
@@ -72,7 +73,9 @@ def _training(studio) -> None:
             imgui.progress_bar(min(snapshot.epoch / info.epochs, 1.0), imgui.ImVec2(-1, 0),
                                f"epoch {snapshot.epoch}/{info.epochs}  step {snapshot.step}")
             imgui.pop_style_color()
-            imgui.text(f"{len(snapshot.means)} primitives  loss {snapshot.loss:.4f}")
+            # No loss before the first step; "-": the font has no en dash.
+            loss = "-" if math.isnan(snapshot.loss) else f"{snapshot.loss:.4f}"
+            imgui.text(f"{len(snapshot.means)} primitives  loss {loss}")
         if worker.error:
             imgui.text_colored(ERROR_COLOR, "the trainer stopped with an error:")
             imgui.text_wrapped(worker.error)
@@ -145,7 +148,7 @@ def _display(studio) -> None:
     display.color_by = widgets.combo("colour by", display.color_by, COLOR_MODES,
                                      "colour the splats by their opacity or DoG shape (a: inner scale, "
                                      "t: surround ratio) on viridis; white: no colouring")
-    if studio.view.color_range is not None:
+    if display.color_by != "white" and studio.view.color_range is not None:
         imgui.text_disabled("viridis: {:.3g} .. {:.3g}".format(*studio.view.color_range))
     imgui.text("Layers")
     members = {} if latest is None else layer_members(latest.snapshot)
@@ -191,9 +194,9 @@ def draw(studio, area: layout.Area) -> None:
         _scene(studio)
         _training(studio)
         _live(studio.state)
-        _restart(studio)
+        _curves(studio)  # before the longer sections: Export in sight on a 700 px high window
         _display(studio)
-        _curves(studio)
+        _restart(studio)
     imgui.end()
 
 
@@ -207,4 +210,6 @@ def draw_status(studio, area: layout.Area) -> None:
             imgui.text_colored(ERROR_COLOR, f"trainer error: {worker.error}")
         else:
             imgui.text(studio.state.status)
+            if studio.state.status:  # a long one runs off the line: all of it on hover
+                imgui.set_item_tooltip(studio.state.status)
     imgui.end()

@@ -32,6 +32,7 @@ class Extraction:
         counts: primitives left after each filter, chains, lines, Béziers.
         fscore: threshold in mm -> F-score in %, when the scene has ground truth and curves.
         written: the files exported with it.
+        unwritten: the formats asked for but not written, as there were no curves.
         selection: the layers extracted, e.g. 'L0+L1' ('' when the whole model).
     """
 
@@ -42,6 +43,7 @@ class Extraction:
     fscore: dict[int, float] | None = None
     written: tuple[Path, ...] = field(default_factory=tuple)
     selection: str = ""
+    unwritten: tuple[str, ...] = ()
 
 
 def export_path(run_dir: Path, step: int, fmt: str, selection: str = "") -> Path:
@@ -56,7 +58,7 @@ def extract_snapshot(snapshot, elapsed: float, scene: Scene, detector: str, run_
                      selection: str = "") -> Extraction:
     """Extract curves from `snapshot` (the layers `selection` of a model, '' for all of it),
     score them when the scene has ground truth, and write them in each of `formats` (see
-    `export_path`). `detector` names the maps of the projection filter."""
+    `export_path`) unless there are none. `detector` names the maps of the projection filter."""
     attach_edge_maps(scene, detector)  # a finished run's maps may not be loaded yet
     result = extract_primitives(EdgePrimitives.from_arrays(snapshot.primitives), config, scene, detector)
     fscore = None
@@ -64,6 +66,9 @@ def extract_snapshot(snapshot, elapsed: float, scene: Scene, detector: str, run_
     ground_truth = ground_truth_for(scene.root) if len(samples) else None  # none from curves all under 5 mm
     if ground_truth is not None:
         fscore = evaluate(samples, ground_truth.load()).fscore
+    if not result.curves.num_curves:  # an empty file would pass for an export
+        return Extraction(snapshot.step, elapsed, result.curves, result.counts, fscore, (), selection,
+                          tuple(formats))
     written = tuple(write_edges(export_path(run_dir, snapshot.step, fmt, selection), result.curves)
                     for fmt in formats)
     return Extraction(snapshot.step, elapsed, result.curves, result.counts, fscore, written, selection)

@@ -34,8 +34,9 @@ def draw(studio, area: layout.Area) -> None:
     if layout.begin("Inspectors", area, imgui.WindowFlags_.no_scrollbar):
         state, views = studio.state, len(studio.session.scene)
         imgui.set_next_item_width(12 * imgui.get_font_size())
-        state.view = widgets.slider_int("training view", min(state.view, views - 1), 0, views - 1,
-                                        "the view the inspectors show (keys 1 - 9 pick the first nine)")
+        # Numbered from 1, as the keys 1 - 9 and the help count them.
+        state.view = widgets.slider_int("training view", min(state.view, views - 1) + 1, 1, views,
+                                        "the view the inspectors show (keys 1 - 9 pick the first nine)") - 1
         imgui.same_line()
         if widgets.button("Snap 3D view", "look through this view's camera in the 3D view"):
             state.request("snap")

@@ -90,6 +90,8 @@ def draw_help(studio) -> None:
                     imgui.text(what)
                 imgui.end_table()
         imgui.separator_text("Settings")
-        imgui.text_wrapped("Live settings (pruning p, w(U)) reach the trainer at its next step; "
-                           "the others apply at the next Start or Restart. Hover a control for more.")
+        # Lines of their own: wrapped text in an auto-sized window starts as tall as a word per
+        # line and settles frames later, moving the window.
+        imgui.text("Live settings (pruning p, w(U)) reach the trainer at its next step;\n"
+                   "the others apply at the next Start or Restart. Hover a control for more.")
     imgui.end()

@@ -42,6 +42,17 @@ FOCUS_WINDOW = "3D view"
 """The panel that takes imgui's focus back whenever a window over the panels closes."""
 
 
+def written_note(extraction: Extraction) -> str:
+    """What an extraction exported, short enough for the status line: the files' names in the
+    run's exports folder, or why nothing was written."""
+    if extraction.unwritten:
+        return f"; nothing exported ({', '.join(extraction.unwritten)}): no curves in this snapshot"
+    if not extraction.written:
+        return ""
+    first, *others = extraction.written
+    return f"; wrote {first.parent.name}/{first.name}{''.join(f', {path.suffix}' for path in others)}"
+
+
 class Studio:
     """The session on screen.
 
@@ -64,6 +75,8 @@ class Studio:
         self.stop_seconds: float | None = None
         self.frames = 0
         self.dialog: FolderDialog | None = None
+        self.plots_tabbed = False
+        """Whether the plots panel showed its plots in tabs (too short to stack them)."""
         self.confirm: Confirm | None = None
         """The question asked before stopping a run (quit, Restart, open), while it waits."""
         self._overlays: set[str] = set()
@@ -179,7 +192,9 @@ class Studio:
             elif request.name in ("pause", "resume") and self.worker is not None:
                 self.worker.update_controls(paused=request.name == "pause")
             elif request.name in ("extract", "export") and self.latest is None:
-                self.state.status = "nothing to extract yet: start a run"
+                self.state.status = f"nothing to {request.name} yet: start a run"
+            elif request.name in ("extract", "export") and self.selection is None:
+                self.state.status = f"nothing to {request.name}: every layer is hidden (tick one in 3D view)"
             elif request.name == "extract":
                 self._extract_asked = True
             elif request.name == "export":
@@ -284,9 +299,8 @@ class Studio:
             self.fscores.append((extraction.elapsed, extraction.fscore))
         self.exports += extraction.written
         counts = f"{len(extraction.curves.lines)} lines, {len(extraction.curves.beziers)} Beziers"
-        written = f"; wrote {', '.join(map(str, extraction.written))}" if extraction.written else ""
         layers = f" ({extraction.selection})" if extraction.selection else ""
-        self.state.status = f"curves at step {extraction.step}{layers}: {counts}{written}"
+        self.state.status = f"curves at step {extraction.step}{layers}: {counts}{written_note(extraction)}"
 
     def _refresh_inspectors(self, latest: Published | None) -> None:
         """Re-render the inspectors when the snapshot, the view or the weighting changed."""
@@ -362,6 +376,7 @@ class Studio:
 
     def _draw(self) -> None:
         widgets.RECTS.clear()
+        widgets.CUT.clear()
         areas = layout.studio_layout()
         controls_panel.draw(self, areas["controls"])
         view_panel.draw(self, areas["view"])
@@ -413,7 +428,8 @@ class Studio:
                  "loss": None if self.latest is None else self.latest.snapshot.loss,
                  "view_at_home": self.view.at_home, "view_index": self.state.view,
                  "frames": self.frames, "view_renders": self.view.renders, "cpu_seconds": time.process_time(),
-                 "help": self.state.show_help,
+                 "help": self.state.show_help, "cut_widgets": sorted(widgets.CUT),
+                 "plots_tabbed": self.plots_tabbed,
                  "dialog": None if self.dialog is None else str(self.dialog.path),
                  "confirm": None if self.confirm is None else self.confirm.question,
                  "title": self.title}

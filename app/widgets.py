@@ -11,12 +11,18 @@ from imgui_bundle import imgui
 
 RECTS: dict[str, tuple[float, float, float, float]] = {}
 """Label -> (x0, y0, x1, y1) in screen points of the widgets drawn by the last frame."""
+CUT: set[str] = set()
+"""Labels of the widgets the last frame drew only partly or not at all in their panel (beyond its
+bottom: reached only by scrolling)."""
 
 
 def _noted(label: str, tip: str) -> None:
     """Note the last item's rectangle under `label` and give it the tooltip `tip`."""
     low, high = imgui.get_item_rect_min(), imgui.get_item_rect_max()
     RECTS[label] = (low.x, low.y, high.x, high.y)
+    top, bottom = imgui.get_window_pos().y, imgui.get_window_pos().y + imgui.get_window_size().y
+    if low.y < top or high.y > bottom:
+        CUT.add(label)
     if tip:
         imgui.set_item_tooltip(tip)
 

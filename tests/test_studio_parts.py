@@ -78,3 +78,13 @@ def test_an_aborted_start_leaves_no_folder_but_a_trained_one_stays(tmp_path):
     (trained / "checkpoint.pt").write_bytes(b"")
     discard_empty_run(trained)
     assert (trained / "checkpoint.pt").is_file() and (trained / "config.json").is_file()
+
+
+def test_the_benchmark_help_ends_with_a_sentence(capsys):
+    from edgedog.app.benchmark import main
+
+    with pytest.raises(SystemExit):
+        main(["--help"])
+    help_text = capsys.readouterr().out
+    description = help_text.split("\n\n")[1]
+    assert description.rstrip().endswith(".")

@@ -299,3 +299,49 @@ def test_every_layer_combination_of_a_resumed_layered_run_draws(box, xvfb_displa
                    {"expect": {"inspected_layers": drawn, "inspectors": 6}, "timeout": 30}]
     probe = assert_ok(*run_script([*resume, {"request": "close"}], [run], xvfb_display, tmp_path))
     assert probe["run_dir"] == str(run / "L1") and not probe["status"].startswith("inspectors:")
+
+
+def test_at_1024x700_every_no_op_says_why_and_export_is_in_sight(box, xvfb_display, tmp_path):
+    # Issue 40, item 5: Export and Extract with every layer hidden did nothing, silently; the
+    # export paths ran off the status line; Export needed scrolling; the plots were squashed.
+    hidden = "nothing to {}: every layer is hidden (tick one in 3D view)"
+    actions = [{"request": "start"}, {"expect": {"phase": "training", "steps": [">", 120]}, "timeout": 90},
+               {"request": "pause"}, {"expect": {"phase": "paused"}, "timeout": 10},
+               {"set": {"display.layers.L0": False}},
+               {"key": "ctrl+e"}, {"expect": {"status": hidden.format("export")}, "timeout": 5},
+               {"click": "Extract now"}, {"expect": {"status": hidden.format("extract")}, "timeout": 5},
+               {"key": "9"}, {"expect": {"status": "9: no such view, the scene has 8"}, "timeout": 5},
+               {"set": {"display.layers.L0": True}},
+               {"click": "Export"}, {"expect": {"curves": [">=", 0]}, "timeout": 60},
+               {"request": "close"}]
+    probe = assert_ok(*run_script(actions, [box, "--runs", tmp_path / "runs", "--preset", "preview", *FAST],
+                                  xvfb_display, tmp_path, size="1024x700"))
+    assert probe["plots_tabbed"]
+    assert not {"Export", "Extract now", "PLY", "OBJ", "JSON"} & set(probe["cut_widgets"])
+    if probe["curves"]:  # the status names the files in the run's exports folder
+        first = Path(probe["export_paths"][0])
+        assert probe["status"].endswith(f"; wrote exports/{first.name}, .obj, .json")
+    else:
+        assert probe["status"].endswith("nothing exported (ply, obj, json): no curves in this snapshot")
+
+
+def test_help_opens_in_the_same_place_each_time(box, xvfb_display, tmp_path):
+    # Issue 40, defect 8: its wrapped text made the help window open tall and elsewhere the first time.
+    shots = [tmp_path / "help1.png", tmp_path / "help2.png"]
+    actions = []
+    for shot in shots:
+        actions += [{"key": "f1"}, {"request": "screenshot", "path": str(shot)},  # its first frames
+                    {"expect": {"help": True}, "timeout": 5}, {"key": "escape"},
+                    {"expect": {"help": False}, "timeout": 5}]
+    actions = [{"expect": {"inspectors": 2}, "timeout": 20}, *actions, {"request": "close"}]
+    assert_ok(*run_script(actions, [box], xvfb_display, tmp_path))
+    first, second = (cv2.imread(str(shot)) for shot in shots)
+    assert (first == second).all()
+
+
+def test_computed_edge_maps_go_to_the_cache_given(box, xvfb_display, tmp_path):
+    # Issue 40, defect 8: --cache was only the built-in scene's folder; computed maps went to the default.
+    actions = [{"request": "start"}, {"expect": {"phase": "training"}, "timeout": 60}, {"request": "close"}]
+    assert_ok(*run_script(actions, [box, "--runs", tmp_path / "runs", "--cache", tmp_path / "cache",
+                                    "--set", "maps.detector=canny:100,200", *FAST], xvfb_display, tmp_path))
+    assert any((tmp_path / "cache" / "edges").rglob("*.png"))

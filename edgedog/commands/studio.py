@@ -4,6 +4,7 @@ and plots."""
 from __future__ import annotations
 
 import argparse
+import os
 from pathlib import Path
 
 from edgedog.app import MIN_SIZE
@@ -41,7 +42,8 @@ def add_parser(subparsers) -> None:
     parser.add_argument("--runs", type=Path, default=None, metavar="DIR",
                         help="where new run folders go (default ./runs; beside RUN for a run folder)")
     parser.add_argument("--cache", type=Path, default=None, metavar="DIR",
-                        help=f"folder for the built-in scene (default: $EDGEDOG_CACHE or {default_cache()})")
+                        help="folder for the built-in scene and computed edge maps (default: $EDGEDOG_CACHE "
+                             f"or {default_cache()})")
     parser.add_argument("--size", type=_size, default=(1600, 1000), metavar="WxH",
                         help="window size in screen coordinates (default 1600x1000)")
     parser.add_argument("--script", type=Path, default=None, metavar="FILE",
@@ -53,6 +55,8 @@ def run(args: argparse.Namespace) -> int:
     from edgedog.app.display import init_glfw
 
     init_glfw()  # no display: fail before loading (or generating) anything
+    if args.cache is not None:  # where edgedog.files.default_cache puts computed edge maps too
+        os.environ["EDGEDOG_CACHE"] = str(args.cache)
     from edgedog.app.session import Session
     from edgedog.app.window import run_studio
     from edgedog.builtin.scene import builtin_scene_path
