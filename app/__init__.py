@@ -15,3 +15,6 @@ immutable snapshots that the window reads.
 MIN_SIZE = (640, 480)
 """The smallest window (screen coordinates) the layout serves; here, so that the command line
 checks --size without loading imgui."""
+STUDIO_PRESET = "quick"
+"""The preset of the studio's new runs (`edgedog studio --preset`): the best F-score in about a
+minute of training on a laptop's CPU (README's results), where `edgedog train` defaults to `full`."""

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 
-from edgedog.app import layout, widgets
+from edgedog.app import STUDIO_PRESET, layout, widgets
 from edgedog.app.layers import layer_members, list_new_layers
 from edgedog.app.state import COLOR_MODES, EXPORT_FORMATS, KERNELS, WEIGHTING_FORMULAS, WEIGHTINGS
 from edgedog.app.worker import FAILED, FINISHED, PAUSED, STOPPED
@@ -104,6 +104,7 @@ def _restart(studio) -> None:
     if studio.session.resumable:
         imgui.text_disabled("Resume run continues the opened run as saved")
     preset = widgets.combo("preset", restart.preset, tuple(PRESETS), f"{presets_help()}. {AT_RESTART}")
+    imgui.text_disabled(f"studio default: {STUDIO_PRESET}")
     if preset != restart.preset:
         restart.preset, restart.epochs = preset, studio.session.base_config(preset).schedule.epochs
     restart.epochs = max(1, widgets.input_int(

@@ -7,7 +7,7 @@ import argparse
 import os
 from pathlib import Path
 
-from edgedog.app import MIN_SIZE
+from edgedog.app import MIN_SIZE, STUDIO_PRESET
 from edgedog.files import default_cache
 from edgedog.train.config import PRESETS, presets_help
 
@@ -34,8 +34,8 @@ def add_parser(subparsers) -> None:
                     "use `edgedog train`.")
     parser.add_argument("path", nargs="?", type=Path, metavar="SCENE | RUN",
                         help="scene folder, or run folder to resume (default: the built-in scene)")
-    parser.add_argument("--preset", choices=PRESETS, default="preview",
-                        help=f"settings of new runs (default preview). {presets_help()}")
+    parser.add_argument("--preset", choices=PRESETS, default=STUDIO_PRESET,
+                        help=f"settings of new runs (default {STUDIO_PRESET}). {presets_help()}")
     parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                         help="override a setting of edgedog.train.config.TrainConfig for new runs "
                              "(repeatable; a resumed run keeps its own)")
