@@ -55,6 +55,12 @@ class BackgroundJob:
         self._thread.start()
         return True
 
+    @property
+    def pending(self) -> bool:
+        """Whether a job runs or its outcome waits to be polled."""
+        with self._lock:
+            return self.busy or self._done is not None
+
     def poll(self) -> Done | None:
         """The outcome of the last job once it has finished (each outcome is returned once)."""
         with self._lock:

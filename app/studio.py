@@ -422,6 +422,7 @@ class Studio:
                  "fscores": len(self.fscores), "status": self.state.status,
                  "run_dir": None if worker is None or worker.info is None else str(worker.info.run_dir),
                  "curves": None if self.extraction is None else self.extraction.curves.num_curves,
+                 "extracting": self.extract_job.pending or self._extract_asked or bool(self._pending_exports),
                  "curves_selection": None if self.extraction is None else self.extraction.selection,
                  "layers": None if self.latest is None else sorted(layer_members(self.latest.snapshot)),
                  "series": 0 if worker is None else len(worker.series()),
