@@ -69,6 +69,12 @@ def step_without_unit(folder: Path) -> Path:
     return path
 
 
+def test_a_unit_less_step_file_takes_the_unit_it_is_given(tmp_path):
+    assert make_scene(step_without_unit(tmp_path), tmp_path / "scene", "--unit", "cm") == 0
+    dimensions = json.loads((tmp_path / "scene" / "edgedog_scene.json").read_text())["dimensions"]
+    assert dimensions["unit_mm"] == pytest.approx(300.0)  # 30 units of 1 cm
+
+
 def cad_case(name: str, write, *words, options=()) -> Case:
     """`make-scene --cad` on the file `write(folder)` makes; the error names it and `words`."""
     def build(folder: Path):

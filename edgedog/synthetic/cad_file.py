@@ -70,7 +70,7 @@ def read_cad(path: str | Path, unit: str | None = None) -> tuple[Shape, float]:
 
     Args:
         unit: the length unit (a key of UNITS_MM) of a file that declares none: a BREP file,
-            or a STEP file without units. A STEP file's own unit wins; a different `unit` is an error.
+            or a STEP file without units. A STEP file that declares its unit takes none.
     Returns:
         the shape (a build123d Compound of solids), and millimetres per unit of its coordinates.
     """
@@ -98,7 +98,8 @@ def read_cad(path: str | Path, unit: str | None = None) -> tuple[Shape, float]:
 
 
 def _read_step(path: Path, unit: str | None) -> tuple[TopoDS_Shape, float]:
-    """The STEP file's shape in millimetres (the kernel converts from the file's declared unit)."""
+    """The STEP file's shape, and millimetres per unit of its coordinates: 1 where the file
+    declares its unit (the kernel converts into millimetres), else the given `unit`'s."""
     reader = STEPControl_Reader()
     if reader.ReadFile(str(path)) != IFSelect_RetDone:
         raise InputError(path, "not a readable STEP file")
@@ -114,7 +115,7 @@ def _read_step(path: Path, unit: str | None) -> tuple[TopoDS_Shape, float]:
     shape = reader.OneShape()
     if shape.IsNull():
         raise InputError(path, "holds no shape (empty)")
-    return shape, 1.0 if declared else UNITS_MM[unit] / UNITS_MM["mm"]
+    return shape, 1.0 if declared else UNITS_MM[unit]
 
 
 def _read_brep(path: Path) -> TopoDS_Shape:
