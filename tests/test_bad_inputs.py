@@ -253,8 +253,10 @@ CASES = [
     Case("eval-json-in-proc", eval_json_to("/proc/edgedog.json")),
     Case("eval-json-is-a-folder", eval_json_to("metrics/")),
     Case("init-out-is-a-folder", init_out_to_folder),
+    # Canny: the detector does not matter here, and PiDiNet (auto) would load its weights first.
     Case("make-scene-out-in-proc", lambda folder: (["make-scene", "--shape", "box", "--out",
-                                                    "/proc/edgedog-box", "--views", "4", "--size", "32"],
+                                                    "/proc/edgedog-box", "--views", "4", "--size", "32",
+                                                    "--detector", "canny"],
                                                    ["/proc/edgedog-box"])),
     Case("extract-not-a-run", lambda folder: (["extract", foreign_folder(folder)], ["mine"])),
     Case("extract-missing", lambda folder: (["extract", folder / "nothing"], ["nothing"])),
