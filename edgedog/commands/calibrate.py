@@ -11,7 +11,7 @@ from pathlib import Path
 from edgedog.commands.arguments import MAX_SIZE, bounded_integer
 from edgedog.commands.scene_args import add_scene_options, open_scene
 from edgedog.edges import calibrate
-from edgedog.edges.registry import detector_names
+from edgedog.edges.registry import WEIGHTS_HELP, detector_names
 from edgedog.errors import ConfigError
 from edgedog.train.config import MAX_SEED
 
@@ -48,7 +48,7 @@ def add_parser(subparsers) -> None:
     source.add_argument("--scene", help="scene folder whose own maps to measure (needs ground truth)")
     parser.add_argument("--maps", help="with --scene: which of the scene's edge maps, e.g. pidinet")
     parser.add_argument("--weights", type=Path, default=None,
-                        help="PiDiNet weights file or folder (default: $EDGEDOG_PIDINET)")
+                        help=WEIGHTS_HELP)
     shapes = ",".join(calibrate.DEFAULT_SHAPES)
     parser.add_argument("--shapes", type=_names, default=list(calibrate.DEFAULT_SHAPES),
                         help=f"built-in parts to render, comma-separated (default {shapes})")

@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 
 from edgedog.commands.scene_args import add_scene_options, open_scene
-from edgedog.edges.registry import detectors_help
+from edgedog.edges.registry import WEIGHTS_HELP, detectors_help
 
 
 def add_parser(subparsers) -> None:
@@ -21,7 +21,7 @@ def add_parser(subparsers) -> None:
     parser.add_argument("--detector", default="auto",
                         help="one of the detectors listed below (default: auto)")
     parser.add_argument("--weights", type=Path, default=None,
-                        help="PiDiNet weights file or folder (default: $EDGEDOG_PIDINET)")
+                        help=WEIGHTS_HELP)
     parser.add_argument("--recompute", action="store_true", help="ignore cached or provided maps")
     add_scene_options(parser)
     parser.set_defaults(run=run)

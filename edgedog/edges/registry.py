@@ -21,7 +21,10 @@ from edgedog.edges.detector import EdgeDetector
 from edgedog.errors import ConfigError, InputError
 
 Weights = str | Path | None
-"""A PiDiNet weights file or folder; None: $EDGEDOG_PIDINET."""
+"""A PiDiNet weights file or folder; None: $EDGEDOG_PIDINET, else the shipped BSDS weights."""
+
+WEIGHTS_HELP = "PiDiNet weights file or folder (default: $EDGEDOG_PIDINET, else the BSDS ones edgedog ships)"
+"""The help text of the commands' --weights option."""
 
 AUTO = "auto"
 """Stands for `DEFAULT_DETECTOR` on every machine: its weights ship with edgedog."""
