@@ -138,3 +138,11 @@ def test_bad_input_on_the_command_line_is_one_line(tmp_path):
     result = edgedog("info", path.parent)
     assert result.returncode == 2
     assert result.stderr.count("\n") == 1 and result.stderr.startswith(f"edgedog: error: {path}: frame 0: ")
+
+
+def test_files_outside_the_folder_load_when_allowed(tmp_path, monkeypatch):
+    root = write_scene(tmp_path / "scene")
+    (root / "images" / "frame_00001.png").rename(tmp_path / "frame_00001.png")
+    edit(root, lambda m: m["frames"][1].update(file_path="../frame_00001.png"))
+    monkeypatch.setenv("EDGEDOG_ALLOW_OUTSIDE_FILES", "1")
+    assert load_scene(root).views[1].image_path == tmp_path / "frame_00001.png"

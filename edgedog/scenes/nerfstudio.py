@@ -27,6 +27,7 @@ from edgedog.errors import InputError
 from edgedog.files import read_json
 from edgedog.scenes.camera import intrinsics, w2c_from_opengl_c2w
 from edgedog.scenes.common import (
+    ALLOW_OUTSIDE,
     bounds_from_cameras,
     check_view_count,
     checked_camera,
@@ -130,7 +131,8 @@ def _frame_file(root: Path, transforms: Path, listed: Any, where: str, key: str,
         raise InputError(transforms, f"{where}: {key} is not a file name")
     path = resolved(root / listed)
     if not path.is_relative_to(root) and not outside_files_allowed():
-        raise InputError(transforms, f"{where}: {key} {listed!r} lies outside the scene folder")
+        raise InputError(transforms, f"{where}: {key} {listed!r} lies outside the scene folder (set "
+                                     f"{ALLOW_OUTSIDE}=1 to allow it)")
     candidates = [(path, 1)] if factor in (None, 1) else []
     candidates += [(path.parent.with_name(f"{path.parent.name}_{d}") / path.name, d)
                    for d in DOWNSCALES if factor in (None, d)]
