@@ -3,9 +3,13 @@ with sharp edges, the designs differ, and the seed changes sizes, not designs.""
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
+from edgedog.cli import main
+from edgedog.groundtruth import ground_truth_for
 from edgedog.synthetic.cad_file import check_solid
 from edgedog.synthetic.family import BASES, DESIGNS, FEATURES, OTHERS, family_part, family_solid
 from edgedog.synthetic.features import Arc, Traced
@@ -26,6 +30,20 @@ def test_every_design_builds_a_valid_solid_with_sharp_edges(tmp_path):
         if "fillet" in recipe.features:  # the fillets' seams are edges, not sharp ones
             assert len(curves) < len(solid.edges())
     assert kinds == {"Line", "Arc", "ellipse", "bspline"}
+
+
+def test_make_scene_family_writes_a_design_and_refuses_an_unknown_one(tmp_path, capsys):
+    assert main(["make-scene", "--family", "36", "--out", str(tmp_path / "hub"), "--views", "3",
+                 "--size", "64", "--detector", "canny"]) == 0
+    manifest = json.loads((tmp_path / "hub" / "edgedog_scene.json").read_text())
+    assert manifest["shape"] == DESIGNS[36].name == "flanged-hub"
+    np.testing.assert_allclose(ground_truth_for(tmp_path / "hub").load(), family_part(36).ground_truth())
+    assert main(["make-scene", "--family", str(len(DESIGNS)), "--out", str(tmp_path / "none")]) == 2
+    assert f"the family's designs are 0 to {len(DESIGNS) - 1}" in capsys.readouterr().err
+    assert not (tmp_path / "none").exists()
+    with pytest.raises(SystemExit):
+        main(["make-scene", "--help"])
+    assert f"family of {len(DESIGNS)} ABC-like parts" in " ".join(capsys.readouterr().out.split())
 
 
 def test_every_base_and_feature_is_used_and_the_seed_changes_sizes_only():

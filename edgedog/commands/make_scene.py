@@ -1,6 +1,6 @@
-"""`edgedog make-scene --shape NAME | --cad FILE | --abc MESH FEATURES --out DIR`: a built-in CAD part,
-any STEP or BREP file, or an ABC object as ABC distributes it, as an ABC-NEF-style scene with its
-exact sharp edges as ground truth."""
+"""`edgedog make-scene --shape NAME | --family INDEX | --cad FILE | --abc MESH FEATURES --out DIR`:
+a built-in CAD part, a design of the procedural family, any STEP or BREP file, or an ABC object as
+ABC distributes it, as an ABC-NEF-style scene with its exact sharp edges as ground truth."""
 
 from __future__ import annotations
 
@@ -34,6 +34,9 @@ def add_parser(subparsers) -> None:
     part.add_argument("--shape", choices=list(SHAPES), metavar="NAME", help="a built-in part (see below)")
     part.add_argument("--cad", type=Path, metavar="FILE",
                       help="a STEP (.step, .stp) or BREP (.brep) file holding one part's closed solid(s)")
+    part.add_argument("--family", type=int, metavar="INDEX",
+                      help="design INDEX (from 0) of the procedural family of 42 ABC-like parts, sizes "
+                           "drawn from --seed")
     part.add_argument("--abc", type=Path, nargs=2, metavar=("MESH", "FEATURES"),
                       help="an ABC object: its triangle mesh (.obj) and features file (.yml); ground "
                            "truth: its sharp curves by the ABC protocol")
@@ -97,12 +100,17 @@ def run(args: argparse.Namespace) -> None:
 
     degradations = degradations_from(args)
     if args.unit is not None and args.cad is None:
-        raise ConfigError("--unit is the length unit of a --cad file; leave it out with --shape and --abc")
+        raise ConfigError("--unit is the length unit of a --cad file; leave it out otherwise")
     start = time.perf_counter()
     if args.cad is not None:
         from edgedog.synthetic.cad_file import cad_part  # the CAD kernel reads the file
 
         part, made = cad_part(args.cad, args.unit), str(args.cad)
+    elif args.family is not None:
+        from edgedog.synthetic.family import family_part
+
+        part = family_part(args.family, args.seed)
+        made = f"family design {args.family}, {part.name} (seed {args.seed})"
     elif args.abc is not None:
         from edgedog.synthetic.abc_file import abc_part
 

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import build123d as bd
 import numpy as np
 
+from edgedog.errors import ConfigError
 from edgedog.synthetic.brep import part_from_solid
 from edgedog.synthetic.shapes import Part
 
@@ -317,5 +318,7 @@ def family_solid(recipe: Recipe, rng: np.random.Generator) -> bd.Part:
 
 def family_part(index: int, seed: int = 0) -> Part:
     """Design `index` of DESIGNS with sizes drawn from `seed`, normalised into [0, 1]^3."""
+    if not 0 <= index < len(DESIGNS):
+        raise ConfigError(f"--family {index}: the family's designs are 0 to {len(DESIGNS) - 1}")
     recipe = DESIGNS[index]
     return part_from_solid(recipe.name, family_solid(recipe, np.random.default_rng([index, seed])), {})
