@@ -15,11 +15,10 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-import yaml
 from plyfile import PlyData
 
 from edgedog.errors import InputError
-from edgedog.files import read_json
+from edgedog.files import read_json, read_yaml
 from edgedog.metrics import MAX_SAMPLES, sample_count, sample_line
 
 GT_SPACING = 0.005
@@ -156,12 +155,10 @@ def check_sample_count(polylines: list[np.ndarray], features: Path) -> None:
 def sharp_polylines(vertices: np.ndarray, features: Path, obj: Path) -> list[np.ndarray]:
     """The sharp curves of an ABC features file, each as its (M, 3) polyline through `vertices`
     (V, 3), the vertices of the mesh file `obj` it indexes."""
-    try:
-        curves = yaml.load(features.read_text(), Loader=yaml.CSafeLoader)["curves"]
-    except FileNotFoundError:
-        raise InputError(features, "file not found") from None
-    except (yaml.YAMLError, TypeError, KeyError) as exc:
-        raise InputError(features, f"not an ABC features file ({type(exc).__name__})") from None
+    document = read_yaml(features)  # bounded: a deeply nested file crashed the C parser
+    if not isinstance(document, dict) or "curves" not in document:
+        raise InputError(features, "not an ABC features file (no 'curves')")
+    curves = document["curves"]
     polylines = [vertices[indices] for indices in _sharp_curves(curves, len(vertices), features, obj)]
     if not polylines:
         raise InputError(features, "no sharp feature curves")
