@@ -5,7 +5,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from edgedog.groundtruth import GT_SPACING, abc_points_from_cad, ground_truth_for, read_points_ply
+from edgedog.errors import InputError
+from edgedog.groundtruth import (
+    GT_SPACING,
+    abc_points_from_cad,
+    ground_truth_for,
+    read_obj_vertices,
+    read_points_ply,
+    sharp_polylines,
+)
 from edgedog.metrics import score_points
 from edgedog.scenes import load_scene
 
@@ -121,3 +129,13 @@ def test_dtu_cameras_agree_on_the_object(dtu_scene_dir):
             uv, depth = scene.camera(i).project(point[None])
             x, y = np.round(uv[0]).astype(int)
             assert depth[0] > 0 and mask[y, x], (i, point)
+
+
+def test_a_features_file_nested_too_deep_is_one_line(tmp_path):
+    """200,000 nested lists crashed the C YAML parser (a segmentation fault): now one line."""
+    obj = tmp_path / "part.obj"
+    obj.write_text("v 0 0 0\nv 1 0 0\n")
+    features = tmp_path / "part_features.yml"
+    features.write_text("curves: " + "[" * 200_000 + "]" * 200_000)
+    with pytest.raises(InputError, match="part_features.yml: nests lists or mappings more than 64 levels"):
+        sharp_polylines(read_obj_vertices(obj), features, obj)
