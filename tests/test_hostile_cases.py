@@ -9,8 +9,12 @@ from __future__ import annotations
 import json
 import os
 import pickle
+import resource
 import shutil
 import signal
+import subprocess
+import sys
+import time
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -38,6 +42,8 @@ from tests.helpers.tiny_runs import finished_run
 
 CASE_SECONDS = 60
 """Each case's limit (a case takes about a second; a hang used to take forever)."""
+CASE_MEMORY = 512 * 2**20
+"""How much a case may raise the peak resident memory of the process that runs it (bytes)."""
 DEEP = "[" * 200_000 + "]" * 200_000
 """Nested far beyond the reader's 64 levels and Python's recursion limit."""
 HUGE_INT = "9" * 5000
@@ -950,9 +956,15 @@ OWN_ROWS = [
 @pytest.mark.parametrize("case", cases_as_params(CASES + [with_paths(case) for case in HELD_CASES]
                                                  + REPORT_ROWS + OWN_ROWS))
 def test_hostile_case_fails_cleanly(case, tmp_path):
+    """Each row: its exit code, one error line naming the file, no traceback, every file that was
+    there unchanged, within CASE_SECONDS, and the process's peak memory raised by at most
+    CASE_MEMORY (the report's blow-ups took 4.5 and 4.85 GB)."""
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
     try:
         with time_limit(CASE_SECONDS):
             assert_fails_cleanly(case, tmp_path)
+        grown = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024 - peak
+        assert grown <= CASE_MEMORY, f"peak memory grew by {grown / 2**20:.0f} MiB"
     finally:
         while HELD:
             HELD.pop().release()
@@ -1021,3 +1033,114 @@ def test_ray_that_cannot_start_is_one_line(tmp_path, monkeypatch):
     case = Case("BA-ray-start", lambda folder: (batch_into(folder / "out"),
                                                 ["cannot start Ray (MemoryError: std::bad_alloc)"]))
     assert_fails_cleanly(case, tmp_path)
+
+
+# --- Cases that need a second process: Ctrl-C, kill -9 and two writers at once. Each child runs
+# under the report's `ulimit -v` (SUBPROCESS_ADDRESS_SPACE) and its peak RSS is asserted.
+SUBPROCESS_ADDRESS_SPACE = 6 * 2**30
+SUBPROCESS_MEMORY = 1536 * 2**20
+"""Peak resident memory a child may reach (a tiny train peaks near 450 MB)."""
+LONG_TRAIN = ["--preset", "preview", "--set", "epochs=4", "--set", "checkpoint_every=1", "--set",
+              "init.count=300", "--quiet"]
+OUTPUTS = ("primitives.ply", "curves.json", "curves.obj", "curves.ply", "points.ply", "edge_points.ply",
+           "extract.json")
+
+
+def child_limits():
+    resource.setrlimit(resource.RLIMIT_AS, (SUBPROCESS_ADDRESS_SPACE, SUBPROCESS_ADDRESS_SPACE))
+    signal.signal(signal.SIGINT, signal.SIG_DFL)  # as in a terminal, even under a backgrounded runner
+
+
+class Child:
+    """`python -m edgedog ARGV` in the background, its output in files of `folder`."""
+
+    def __init__(self, argv: list, folder: Path, name: str):
+        self.err = folder / f"{name}.stderr"
+        with open(folder / f"{name}.stdout", "w") as out, open(self.err, "w") as err:
+            self.process = subprocess.Popen([sys.executable, "-m", "edgedog", *map(str, argv)], stdout=out,
+                                            stderr=err, stdin=subprocess.DEVNULL, preexec_fn=child_limits)
+
+    def finish(self, seconds: float = CASE_SECONDS) -> tuple[int, str]:
+        """Wait for the child (killed after `seconds`); its exit code (-N: killed by signal N) and
+        stderr, after checking its peak memory."""
+        deadline = time.monotonic() + seconds
+        while True:
+            pid, status, usage = os.wait4(self.process.pid, os.WNOHANG)
+            if pid:
+                break
+            if time.monotonic() > deadline:
+                self.process.kill()
+                raise AssertionError(f"still running after {seconds} s")
+            time.sleep(0.05)
+        self.process.returncode = os.waitstatus_to_exitcode(status)
+        assert usage.ru_maxrss * 1024 <= SUBPROCESS_MEMORY, f"peak RSS {usage.ru_maxrss} KB"
+        return self.process.returncode, self.err.read_text()
+
+
+def wait_for_checkpoint(run: Path, after: float = 0.0, seconds: float = CASE_SECONDS):
+    """Until the run's checkpoint.pt exists and was written after `after` (a time.time())."""
+    deadline = time.monotonic() + seconds
+    checkpoint = run / "checkpoint.pt"
+    while not (checkpoint.is_file() and checkpoint.stat().st_mtime > after):
+        assert time.monotonic() < deadline, "no checkpoint written"
+        time.sleep(0.02)
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory) -> Path:
+    """LONG_TRAIN uninterrupted: what every interrupted and resumed run must end as, byte for byte."""
+    out = tmp_path_factory.mktemp("reference") / "run"
+    done = edgedog_in_process(["train", SCENE, "--out", out, *LONG_TRAIN], out.parent)
+    assert done.returncode == 0, done.stderr
+    return out
+
+
+def assert_resumes_as(run: Path, reference: Path):
+    """`train --resume` of an interrupted `run` finishes it with the reference's outputs."""
+    resumed = edgedog_in_process(["train", SCENE, "--out", run, "--resume", "--quiet"], run.parent)
+    assert resumed.returncode == 0 and "Traceback" not in resumed.stderr, resumed.stderr
+    assert not list(run.glob("*.tmp")), "a temporary file left behind"
+    for name in OUTPUTS:
+        assert (run / name).read_bytes() == (reference / name).read_bytes(), f"{name} differs"
+
+
+@pytest.mark.parametrize("name, interruptions", [
+    pytest.param(name, signals, id=name)
+    for name, signals in [("SIGINT-1", [signal.SIGINT]), ("KILL9-1", [signal.SIGKILL]),
+                          ("KILL9-2", [signal.SIGKILL] * 3)]])
+def test_an_interrupted_run_resumes_byte_identical(name, interruptions, reference, tmp_path):
+    """SIGINT-1, KILL9-1, KILL9-2: Ctrl-C (exit 130, one line with the resume command) or kill -9
+    (some during a checkpoint's write: the Nth kill waits N x 0.15 s past a checkpoint), then
+    --resume: the outputs are byte-identical to the uninterrupted run's."""
+    run = tmp_path / "run"
+    written = 0.0
+    for index, interruption in enumerate(interruptions):
+        argv = ["train", SCENE, "--out", run, *(LONG_TRAIN if index == 0 else ["--resume", "--quiet"])]
+        child = Child(argv, tmp_path, f"{name}-{index}")
+        wait_for_checkpoint(run, after=written)
+        written = (run / "checkpoint.pt").stat().st_mtime
+        time.sleep(0.15 * index)
+        child.process.send_signal(interruption)
+        code, err = child.finish()
+        assert "Traceback" not in err, err
+        if interruption == signal.SIGINT:
+            assert code == 130 and err.strip().count("\n") == 0, err
+            assert err.startswith("edgedog: error: interrupted") and "--resume" in err, err
+        else:
+            assert code in (-signal.SIGKILL, 0), err  # 0: it finished before the signal
+    assert_resumes_as(run, reference)
+
+
+@pytest.mark.parametrize("name", ["CONC-1", "CONC-2"])
+def test_two_trains_into_one_new_folder(name, tmp_path):
+    """CONC-1, CONC-2: two `train` at once into one new folder: one trains to the same outputs as
+    the module's run, the other says in one line that the folder is taken."""
+    run = tmp_path / "run"
+    children = [Child(["train", SCENE, "--out", run, *TRAIN], tmp_path, f"{name}-{i}") for i in range(2)]
+    results = sorted(child.finish() for child in children)
+    assert [code for code, _ in results] == [0, 2], results
+    refused = results[1][1].strip()
+    assert "Traceback" not in refused and refused.count("\n") == 0, refused
+    assert "in use by another edgedog process" in refused or "already holds a run" in refused, refused
+    for name in OUTPUTS:
+        assert (run / name).read_bytes() == (RUN / name).read_bytes(), f"{name} differs"
