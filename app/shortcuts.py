@@ -28,15 +28,15 @@ GESTURES = (
 DIGITS = [getattr(imgui.Key, f"_{digit}") for digit in range(1, 10)]
 
 
-def _ctrl() -> bool:
-    """Whether Ctrl goes with this frame's key presses. At a low frame rate (while training)
-    imgui's input queue spreads a quick Ctrl+O over two frames: Ctrl's press in the first, O's
-    press with Ctrl's release in the second. A Ctrl released this frame still counts."""
-    return imgui.get_io().key_ctrl or imgui.is_key_released(imgui.Key.mod_ctrl)
-
-
 def _pressed(key: imgui.Key, ctrl: bool = False) -> bool:
-    return imgui.is_key_pressed(key, False) and _ctrl() == ctrl
+    """Whether `key` was pressed this frame, with Ctrl held (`ctrl`) or not. At a low frame rate
+    (while training) imgui's input queue spreads a quick Ctrl+O over two frames: Ctrl's press in
+    the first, O's press with Ctrl's release in the second; so for a Ctrl shortcut a Ctrl released
+    this frame still counts (a plain key then pressed, e.g. Esc right after Ctrl+O, is plain)."""
+    if not imgui.is_key_pressed(key, False):
+        return False
+    held = imgui.get_io().key_ctrl
+    return held or imgui.is_key_released(imgui.Key.mod_ctrl) if ctrl else not held
 
 
 def handle_keys(studio) -> None:
