@@ -16,6 +16,7 @@ import numpy as np
 
 from edgedog.errors import InputError
 from edgedog.scenes.camera import intrinsics
+from edgedog.scenes.colmap_binary import check_binary_model
 from edgedog.scenes.common import (
     bounds_from_cameras,
     check_view_count,
@@ -101,14 +102,15 @@ def load_colmap(root: Path) -> Scene:
     model_path = sparse_folder(root)
     if model_path is None:
         raise InputError(root, "no COLMAP sparse model (cameras, images, points3D)")
+    check_binary_model(model_path)  # pycolmap loops for ever on a count the file cannot hold
     try:
         model = pycolmap.Reconstruction(str(model_path))
+        image_ids = sorted(model.reg_image_ids())  # checks that frames name existing images
     except Exception as exc:  # pycolmap raises ValueError, IndexError (unknown ids), RuntimeError...
         first_line = (str(exc).splitlines() or [type(exc).__name__])[0]
         raise InputError(model_path, f"unreadable COLMAP model ({first_line})") from None
     image_folder = root / "images"
     folders = edge_folders(root)
-    image_ids = sorted(model.reg_image_ids())
     check_view_count(len(image_ids), model_path)
     with metadata_errors(model_path):
         views = [_view(model, image_id, model_path, image_folder, folders) for image_id in image_ids]
