@@ -28,6 +28,7 @@ from tests.helpers.bad_inputs import Case, assert_fails_cleanly, cases_as_params
 from tests.helpers.hostile_files import (
     CodeInPickle,
     checkpoint,
+    colmap_as_binary,
     edited_json,
     obj_of_lines,
     place,
@@ -36,7 +37,7 @@ from tests.helpers.hostile_files import (
     zero_png,
 )
 from tests.helpers.paths import shared_path
-from tests.helpers.scene_builders import make_nerf
+from tests.helpers.scene_builders import make_colmap, make_nerf
 from tests.helpers.tiny_runs import QUICK_TRAIN as TRAIN
 from tests.helpers.tiny_runs import finished_run
 
@@ -551,6 +552,16 @@ def no_ground_truth(folder: Path):
     shutil.rmtree(folder / "scene" / "gt")
 
 
+def colmap_counting(count: int):
+    """prep: a COLMAP scene with a binary model whose images.bin declares `count` images (pycolmap
+    looped for ever on 2**64 - 1)."""
+    def prep(folder: Path):
+        model = colmap_as_binary(make_colmap(folder / "colmap"))
+        data = (model / "images.bin").read_bytes()
+        (model / "images.bin").write_bytes(count.to_bytes(8, "little") + data[8:])
+    return prep
+
+
 def evil_torch_weights(folder: Path):
     """ED-weights-rce2: a torch zip whose pickle would run os.system, named as PiDiNet's weights."""
     import torch
@@ -949,6 +960,8 @@ OWN_ROWS = [
             words=["inside the scene folder"]),
     row("NEW-train-out-linked-scene", "train", "{SCENE}", "--out", "{}/link/run", *TRAIN,
         prep=both(copied_scene, links(link="{}/scene")), words=["{}/link/run", "inside the scene folder"]),
+    row("NEW-colmap-bin-count", "info", "{}/colmap", prep=colmap_counting(2**64 - 1),
+        words=["{}/colmap/sparse/0/images.bin", "declares 18446744073709551615 images"]),
     row("NEW-resume-fifo-scene", "train", "{}/fifo", "--out", "{run}", "--resume", "--quiet",
         prep=files(fifo="FIFO"), words=["{}/fifo"]),
 ]

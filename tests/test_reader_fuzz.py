@@ -28,6 +28,7 @@ from edgedog.primitives import read_ply
 from edgedog.scenes import load_scene
 from edgedog.train.checkpoint import read_checkpoint
 from tests.helpers.fuzz import FUZZ, read_or_refuse
+from tests.helpers.hostile_files import colmap_as_binary
 from tests.helpers.scene_builders import make_colmap, make_nerf, make_neus, nerf_meta
 
 NUMBERS = st.sampled_from(["0", "1", "-1", "0.5", "1e308", "-1e308", "nan", "inf", "1e-320", "999999999999",
@@ -239,13 +240,7 @@ def colmap_scenes(tmp_path_factory) -> dict[str, Path]:
     text = make_colmap(tmp_path_factory.mktemp("fuzz-colmap") / "text")
     binary = tmp_path_factory.mktemp("fuzz-colmap") / "binary"
     shutil.copytree(text, binary)
-    import pycolmap
-
-    model = binary / "sparse" / "0"
-    reconstruction = pycolmap.Reconstruction(str(model))
-    for path in model.iterdir():
-        path.unlink()
-    reconstruction.write_binary(str(model))
+    colmap_as_binary(binary)
     return {"text": text, "binary": binary}
 
 

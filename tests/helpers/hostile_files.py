@@ -157,3 +157,16 @@ def obj_of_lines(count: int, length: float) -> str:
     """`count` parallel lines of `length` units as OBJ text."""
     vertices = "".join(f"v 0 {i * 0.01:.3f} 0\nv {length} {i * 0.01:.3f} 0\n" for i in range(count))
     return vertices + "".join(f"l {2 * i + 1} {2 * i + 2}\n" for i in range(count))
+
+
+def colmap_as_binary(root: Path) -> Path:
+    """The COLMAP project `root` (tests/helpers/scene_builders.make_colmap) with its text model
+    rewritten as COLMAP's binary files; returns the model's folder."""
+    import pycolmap
+
+    model = root / "sparse" / "0"
+    reconstruction = pycolmap.Reconstruction(str(model))
+    for path in model.iterdir():
+        path.unlink()
+    reconstruction.write_binary(str(model))
+    return model
