@@ -1059,19 +1059,23 @@ OUTPUTS = ("primitives.ply", "curves.json", "curves.obj", "curves.ply", "points.
            "extract.json")
 
 
-def child_limits():
+def child_limits(file_size: int | None = None):
     resource.setrlimit(resource.RLIMIT_AS, (SUBPROCESS_ADDRESS_SPACE, SUBPROCESS_ADDRESS_SPACE))
     signal.signal(signal.SIGINT, signal.SIG_DFL)  # as in a terminal, even under a backgrounded runner
+    if file_size is not None:  # a write past it fails with EFBIG, as one on a full disk with ENOSPC
+        resource.setrlimit(resource.RLIMIT_FSIZE, (file_size, file_size))
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
 
 
 class Child:
     """`python -m edgedog ARGV` in the background, its output in files of `folder`."""
 
-    def __init__(self, argv: list, folder: Path, name: str):
+    def __init__(self, argv: list, folder: Path, name: str, file_size: int | None = None):
         self.err = folder / f"{name}.stderr"
         with open(folder / f"{name}.stdout", "w") as out, open(self.err, "w") as err:
             self.process = subprocess.Popen([sys.executable, "-m", "edgedog", *map(str, argv)], stdout=out,
-                                            stderr=err, stdin=subprocess.DEVNULL, preexec_fn=child_limits)
+                                            stderr=err, stdin=subprocess.DEVNULL,
+                                            preexec_fn=lambda: child_limits(file_size))
 
     def finish(self, seconds: float = CASE_SECONDS) -> tuple[int, str]:
         """Wait for the child (killed after `seconds`); its exit code (-N: killed by signal N) and
@@ -1157,3 +1161,22 @@ def test_two_trains_into_one_new_folder(name, tmp_path):
     assert "in use by another edgedog process" in refused or "already holds a run" in refused, refused
     for name in OUTPUTS:
         assert (run / name).read_bytes() == (RUN / name).read_bytes(), f"{name} differs"
+
+
+def test_a_write_that_fails_is_one_line_and_the_same_command_then_trains(reference, tmp_path):
+    """DISK-fsize, standing in for DISK-full, DISK-full2 and DISK-resume (a small tmpfs needs a
+    mount, which tests cannot make): `train` with every file limited to 40 KB (RLIMIT_FSIZE; the
+    first write past it, SIFT's feature database of the initialisation, fails with EFBIG as one
+    on a full disk fails with ENOSPC) stops with one line naming the file and leaves no run
+    folder; the same command with room then trains to the uninterrupted run's outputs. It was a
+    traceback (pycolmap's RuntimeError)."""
+    run = tmp_path / "run"
+    code, err = Child(["train", SCENE, "--out", run, *LONG_TRAIN], tmp_path, "disk",
+        file_size=40_000).finish()
+    assert code == 2 and "Traceback" not in err and err.strip().count("\n") == 0, err
+    assert err.startswith("edgedog: error: ") and "cannot write" in err, err
+    assert not run.exists()
+    again = edgedog_in_process(["train", SCENE, "--out", run, *LONG_TRAIN], tmp_path)
+    assert again.returncode == 0, again.stderr
+    for name in OUTPUTS:
+        assert (run / name).read_bytes() == (reference / name).read_bytes(), f"{name} differs"

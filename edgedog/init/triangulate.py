@@ -16,7 +16,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-from edgedog.errors import InputError
+from edgedog.errors import InputError, OutputError
 from edgedog.init.points import InitialPoints, nearest_neighbour_scales
 from edgedog.init.settings import InitSettings
 from edgedog.scenes.camera import Camera
@@ -189,10 +189,15 @@ def _extract_features(scene: Scene, views: list[int], workdir: Path,
     cameras = _prepare_images(scene, views, workdir / "images")
     extraction = pycolmap.FeatureExtractionOptions()
     extraction.max_image_size = int(max_image_size)
-    with colmap_log_level(2):
-        pycolmap.extract_features(workdir / "database.db", workdir / "images", image_names=list(cameras),
-                                  camera_mode=pycolmap.CameraMode.PER_IMAGE,
-                                  extraction_options=extraction, device=pycolmap.Device.cpu)
+    try:
+        with colmap_log_level(2):
+            pycolmap.extract_features(workdir / "database.db", workdir / "images", image_names=list(cameras),
+                                      camera_mode=pycolmap.CameraMode.PER_IMAGE,
+                                      extraction_options=extraction, device=pycolmap.Device.cpu)
+    except RuntimeError as error:  # e.g. a full disk: "No registered database factory succeeded."
+        first_line = (str(error).splitlines() or ["RuntimeError"])[0]
+        raise OutputError(workdir / "database.db",
+            f"cannot write COLMAP's feature database ({first_line})") from None
     return cameras
 
 
