@@ -1171,8 +1171,8 @@ def test_a_write_that_fails_is_one_line_and_the_same_command_then_trains(referen
     folder; the same command with room then trains to the uninterrupted run's outputs. It was a
     traceback (pycolmap's RuntimeError)."""
     run = tmp_path / "run"
-    code, err = Child(["train", SCENE, "--out", run, *LONG_TRAIN], tmp_path, "disk",
-        file_size=40_000).finish()
+    child = Child(["train", SCENE, "--out", run, *LONG_TRAIN], tmp_path, "disk", file_size=40_000)
+    code, err = child.finish()
     assert code == 2 and "Traceback" not in err and err.strip().count("\n") == 0, err
     assert err.startswith("edgedog: error: ") and "cannot write" in err, err
     assert not run.exists()

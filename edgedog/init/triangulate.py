@@ -196,8 +196,8 @@ def _extract_features(scene: Scene, views: list[int], workdir: Path,
                                       extraction_options=extraction, device=pycolmap.Device.cpu)
     except RuntimeError as error:  # e.g. a full disk: "No registered database factory succeeded."
         first_line = (str(error).splitlines() or ["RuntimeError"])[0]
-        raise OutputError(workdir / "database.db",
-            f"cannot write COLMAP's feature database ({first_line})") from None
+        raise OutputError(workdir / "database.db", f"cannot write COLMAP's feature database "
+                                                   f"({first_line})") from None
     return cameras
 
 
