@@ -1121,6 +1121,7 @@ def assert_resumes_as(run: Path, reference: Path):
         assert (run / name).read_bytes() == (reference / name).read_bytes(), f"{name} differs"
 
 
+@pytest.mark.slow  # a second process: about 8 s each
 @pytest.mark.parametrize("name, interruptions", [
     pytest.param(name, signals, id=name)
     for name, signals in [("SIGINT-1", [signal.SIGINT]), ("KILL9-1", [signal.SIGKILL]),
@@ -1148,6 +1149,7 @@ def test_an_interrupted_run_resumes_byte_identical(name, interruptions, referenc
     assert_resumes_as(run, reference)
 
 
+@pytest.mark.slow  # a second process: about 8 s each
 @pytest.mark.parametrize("name", ["CONC-1", "CONC-2"])
 def test_two_trains_into_one_new_folder(name, tmp_path):
     """CONC-1, CONC-2: two `train` at once into one new folder: one trains to the same outputs as
@@ -1163,6 +1165,7 @@ def test_two_trains_into_one_new_folder(name, tmp_path):
         assert (run / name).read_bytes() == (RUN / name).read_bytes(), f"{name} differs"
 
 
+@pytest.mark.slow  # a second process: about 8 s each
 def test_a_write_that_fails_is_one_line_and_the_same_command_then_trains(reference, tmp_path):
     """DISK-fsize, standing in for DISK-full, DISK-full2 and DISK-resume (a small tmpfs needs a
     mount, which tests cannot make): `train` with every file limited to 40 KB (RLIMIT_FSIZE; the
