@@ -44,7 +44,10 @@ class ViewSet:
         object.__setattr__(self, "edge_pixels", [edge_pixels(mask) for mask in self.edge_masks])
 
     def to(self, device: torch.device) -> ViewSet:
-        """These views with their maps and masks on `device` (the cameras stay on the host)."""
+        """These views with their maps and masks on `device` (the cameras stay on the host); these
+        very views when they are there."""
+        if all(t.device == device for t in (*self.targets, *self.edge_masks)):
+            return self
         return ViewSet(self.factor, self.pinholes, self.cameras, [t.to(device) for t in self.targets],
                        [m.to(device) for m in self.edge_masks])
 
