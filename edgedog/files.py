@@ -19,6 +19,18 @@ from typing import Any, BinaryIO
 
 from edgedog.errors import InputError, OutputError
 
+_TEMPORARY = re.compile(r"\..+\.[a-z0-9_]{8}\.tmp")
+"""The name `atomic_write` gives its temporary file: '.NAME.' + mkstemp's 8 characters + '.tmp'."""
+
+
+def remove_stale_temporaries(folder: Path) -> None:
+    """Remove the temporary files that `atomic_write` left in `folder` when its process was killed
+    while writing (kill -9 skips its clean-up). Only for a folder whose lock the caller holds:
+    no writer of it is alive then."""
+    for entry in folder.iterdir():
+        if _TEMPORARY.fullmatch(entry.name) and entry.is_file() and not entry.is_symlink():
+            entry.unlink(missing_ok=True)
+
 
 def atomic_write(path: str | Path, write: Callable[[BinaryIO], None]) -> Path:
     """Call `write(file)` on a temporary file beside `path`, fsync it, then rename it over `path`.

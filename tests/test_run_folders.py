@@ -164,6 +164,19 @@ def test_the_lock_is_exclusive_and_released(tmp_path):
         assert (tmp_path / "run" / LOCK_FILE).read_text().strip() == str(os.getpid())
 
 
+def test_the_lock_removes_what_a_killed_writer_left_mid_write(tmp_path):
+    """kill -9 during atomic_write leaves '.NAME.XXXXXXXX.tmp'; the lock's next holder removes it
+    (no writer of the folder is alive then) and nothing else."""
+    run = tmp_path / "run"
+    run.mkdir()
+    left = run / ".checkpoint.pt.iv3z8nwk.tmp"
+    kept = [run / name for name in ("notes.tmp", ".checkpoint.pt.short.tmp", "log.json")]
+    for path in (left, *kept):
+        path.write_text("x")
+    with RunLock.acquire(run):
+        assert not left.exists() and all(path.exists() for path in kept)
+
+
 @pytest.mark.slow
 def test_ctrl_c_stops_cleanly_and_the_run_resumes(tiny_scenes, tmp_path):
     run = tmp_path / "run"

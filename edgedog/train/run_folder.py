@@ -19,7 +19,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from edgedog.errors import ConfigError, InputError, OutputError
-from edgedog.files import atomic_write_json, create_folder, read_json
+from edgedog.files import atomic_write_json, create_folder, read_json, remove_stale_temporaries
 from edgedog.train.config import DEFAULT_PRESET, PRESETS_RENAMED, TrainConfig, from_dict, to_dict
 
 RUN_CONFIG = "config.json"
@@ -217,6 +217,7 @@ class RunLock:
             raise InputError(path, "was just given up by another edgedog process; run the command again")
         os.ftruncate(fd, 0)
         os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
+        remove_stale_temporaries(path)  # a writer killed mid-write (kill -9) left its temporary file
         return cls(path, fd)
 
     def release(self) -> None:
