@@ -9,6 +9,7 @@ from pathlib import Path
 
 from edgedog.bench.ablation import TABLES, select_rows
 from edgedog.commands.arguments import MAX_SIZE, bounded_integer
+from edgedog.edges.registry import WEIGHTS_HELP
 from edgedog.errors import ConfigError
 from edgedog.files import atomic_write_json
 from edgedog.outputs import check_new_file, check_output_folder, output_file
@@ -76,12 +77,12 @@ def add_parser(subparsers) -> None:
     raster.set_defaults(run=run_raster)
     edges = kinds.add_parser("edges", help="2D edge detectors' speed per megapixel",
                              description="Time every available detector on one image of the built-in "
-                                         "scene (PiDiNet variants when their weights are found).")
+                                         "scene (PiDiNet's NYUD and Multicue variants when their weights "
+                                         "are given).")
     edges.add_argument("--size", type=bounded_integer(16, MAX_SIZE), default=800,
                        help="image width and height")
     edges.add_argument("--repeats", type=bounded_integer(1, 100), default=3)
-    edges.add_argument("--weights", type=Path, default=None,
-                       help="PiDiNet weights (default $EDGEDOG_PIDINET)")
+    edges.add_argument("--weights", type=Path, default=None, help=WEIGHTS_HELP)
     _add_json_arguments(edges)
     edges.set_defaults(run=run_edges)
     ablation = kinds.add_parser(

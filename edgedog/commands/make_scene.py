@@ -9,6 +9,7 @@ import math
 import time
 from pathlib import Path
 
+from edgedog.edges.registry import WEIGHTS_HELP
 from edgedog.errors import ConfigError
 
 MAX_VIEWS = 1000
@@ -54,8 +55,7 @@ def add_parser(subparsers) -> None:
     parser.add_argument("--detector", default="auto",
                         help="edge maps by this detector (see `edgedog edges`), or 'exact': the visible "
                              "ground-truth curves (default auto)")
-    parser.add_argument("--weights", type=Path, default=None,
-                        help="PiDiNet weights file or folder (default: $EDGEDOG_PIDINET)")
+    parser.add_argument("--weights", type=Path, default=None, help=WEIGHTS_HELP)
     spoil = parser.add_argument_group("degradations (training views only)")
     spoil.add_argument("--image-noise", type=float, default=0.0, metavar="STD",
                        help="Gaussian noise on the object's colours, std in [0, 1] units")
