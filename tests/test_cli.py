@@ -67,6 +67,24 @@ def test_eval_of_shifted_edges_with_explicit_gt_and_json_path(builtin_scene_dir,
     assert 5 < metrics["acc_mm"] <= 15.0 + 1e-9
 
 
+def test_eval_of_a_prediction_inside_a_scene_asks_for_json_elsewhere(builtin_scene_dir, tmp_path):
+    """Its default metrics file would land in the scene folder, where nothing is ever written."""
+    scene = tmp_path / "scene"
+    scene.mkdir()
+    (scene / "transforms_train.json").write_bytes((builtin_scene_dir / "transforms_train.json").read_bytes())
+    pred = scene / "edges.obj"
+    write_obj(pred, [CORNERS[[a, b]] for a, b in EDGES])
+    before = sorted(scene.iterdir())
+    result = edgedog("eval", pred, "--gt", builtin_scene_dir / "gt" / "box_0.005.ply")
+    assert result.returncode != 0 and result.stderr.count("\n") == 1, result.stderr
+    assert "edges.obj.eval.json: would lie inside a scene folder" in result.stderr
+    assert "pass --json FILE outside it" in result.stderr
+    assert sorted(scene.iterdir()) == before
+    elsewhere = tmp_path / "metrics.json"
+    assert edgedog("eval", pred, "--gt", builtin_scene_dir / "gt" / "box_0.005.ply", "--json",
+                   elsewhere).returncode == 0 and elsewhere.is_file()
+
+
 def test_eval_rejects_a_truncated_prediction(builtin_scene_dir, tmp_path):
     pred = tmp_path / "parametric_edges.json"
     pred.write_text('{"lines_end_pts": [[0, 0, 0, 1, 1')

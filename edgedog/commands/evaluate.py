@@ -8,12 +8,13 @@ from pathlib import Path
 import numpy as np
 
 from edgedog.curve_files import read_edges
-from edgedog.errors import InputError
+from edgedog.errors import InputError, OutputError
 from edgedog.files import atomic_write_json
 from edgedog.groundtruth import ground_truth_for, read_points_ply
 from edgedog.metrics import SAMPLE_SPACING, VOXELS_PER_AXIS, EdgeMetrics, evaluate
 from edgedog.outputs import check_new_file, output_file
 from edgedog.scenes import load_scene
+from edgedog.train.run_folder import enclosing_scene
 from edgedog.world import check_coordinates
 
 
@@ -55,6 +56,9 @@ def score_file(pred: Path, gt_points, world_to_gt=None, voxelize: bool = True) -
 def run(args: argparse.Namespace) -> None:
     default = args.pred.with_name(args.pred.name + ".eval.json")
     out = args.json or default
+    if args.json is None and enclosing_scene(default) is not None:  # the user named no output there
+        raise OutputError(default, "would lie inside a scene folder, where edgedog never writes: pass "
+                                   "--json FILE outside it")
     check_new_file(out, args.force, default)  # before the work, not after it
     if args.scene is not None:
         scene = load_scene(args.scene)
