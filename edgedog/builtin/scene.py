@@ -1,8 +1,8 @@
 """The built-in scenes, written by `edgedog.builtin` in the ABC-NEF layout.
 
 - The default scene (`builtin_scene_path`): a CAD part with a cylindrical boss, its edge maps
-  by the weight-free default detector (Canny) whether or not PiDiNet weights are found, so that
-  `edgedog demo` gives everyone the same, documented result; generated on first use in the cache.
+  by a weight-free detector (Canny) whatever PiDiNet weights are configured, so that `edgedog
+  demo` gives everyone the same, documented result; generated on first use in the cache.
 - The exact box: an axis-aligned box with exact edge maps (its visible edges drawn), which
   tests and benchmarks use as a fixture with known answers. Unlike the catalogue's parts it is
   not normalised: it sits in [0.2, 0.8] x [0.3, 0.7] x [0.35, 0.65].
@@ -34,7 +34,7 @@ DEFAULT_SIZE = 400
 """ABC-NEF's 50 views at half its resolution, for a first run in about a minute."""
 DEFAULT_DETECTOR = DEFAULT_WEIGHT_FREE
 """Not "auto": PiDiNet maps of this scene train badly (docs/BENCHMARKS.md, the built-in part:
-F10 44 against 93 with Canny, measured), and the demo's result must not depend on whether
+F10 44 against 93 with Canny, measured), and the demo's result must not depend on which
 weights happen to be configured."""
 
 BOX_MIN = np.array([0.2, 0.3, 0.35])
@@ -82,7 +82,8 @@ def builtin_scene_path(cache: Path | None = None, progress: bool = False) -> Pat
     """The default scene's folder, `<cache>/scenes/boss-canny`, generated on first use.
 
     The folder is named after the maps' detector: a scene cached by an older version with other
-    maps (PiDiNet ones, when weights were configured) is never taken for this one.
+    maps (PiDiNet ones, made by versions whose default followed the configured weights) is never
+    taken for this one.
 
     Generation goes through a temporary folder renamed when complete: a concurrent or
     interrupted run never leaves half a scene, and whichever run finishes first wins.

@@ -50,8 +50,8 @@ EdgeMapper = Callable[[Camera, Render, np.ndarray], np.ndarray]
 def edge_mapper(detector: str, part: Part, weights: str | Path | None = None) -> tuple[str, EdgeMapper]:
     """The detector's name and a function (camera, render, rgba) -> (H, W) float32 edge map.
 
-    `detector` is a name `make_detector` accepts ("auto": PiDiNet when its weights are found,
-    else a weight-free one) or EXACT: the part's visible feature curves.
+    `detector` is a name `make_detector` accepts ("auto": PiDiNet, with the shipped BSDS weights
+    unless others are given) or EXACT: the part's visible feature curves.
     """
     if detector == EXACT:
         return EXACT, lambda camera, render, rgba: exact_edge_map(part.curves, camera, render)
