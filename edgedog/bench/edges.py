@@ -25,7 +25,8 @@ def bench_image(size: int) -> np.ndarray:
 
 
 def run(size: int = 800, repeats: int = 3, weights: Path | None = None) -> dict:
-    """Seconds per megapixel of every detector available (PiDiNet when its weights are found)."""
+    """Seconds per megapixel of every detector available (PiDiNet's NYUD and Multicue variants when
+    their weights are given)."""
     names = available_detectors(weights)
     image = bench_image(size)
     megapixels = size * size / 1e6
