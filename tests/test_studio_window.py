@@ -291,10 +291,12 @@ def test_every_layer_combination_of_a_resumed_layered_run_draws(box, xvfb_displa
     # Issue 40, defect 2: a layered run stopped while L1 trains, reopened and resumed, trains only
     # L1; showing L0 alone needs L0's maps (Canny 150,300), never loaded by this process.
     first = [{"set": {"restart.layers": 2}}, {"request": "start"},
-             {"expect": {"layers": ["L0", "L1"], "steps": [">", 60 * 8 + 2 * 8]}, "timeout": 300},
+             {"expect": {"layers": ["L0", "L1"], "steps": [">", 600 * 8 + 2 * 8]}, "timeout": 300},
              {"request": "close"}]
-    # 60 epochs a layer: stopped with seconds of L1 to go even at 150 steps/s (idle frames come at 2/s).
-    probe = assert_ok(*run_script(first, [box, "--runs", tmp_path / "runs", "--set", "epochs=60", *FAST],
+    # 600 epochs a layer: stopped, and resumed below, with thousands of L1's steps to go. With 60, an
+    # idle machine trained the 464 steps left between two frames (2 a second while training) and
+    # the run had finished when the close came.
+    probe = assert_ok(*run_script(first, [box, "--runs", tmp_path / "runs", "--set", "epochs=600", *FAST],
                                   xvfb_display, tmp_path))
     assert probe["phase"] == "stopped"
     run = Path(probe["run_dir"]).parent
