@@ -806,7 +806,8 @@ REPORT_ROWS = [
         prep=no_ground_truth, words=["{scene}", "no ground truth"]),
     # batch suites
     # two scene folders of one name in different parents (relative to the suite's folder)
-    suite_text("BA-globall", "scenes: [one/bin, two/bin]\n", "one folder name", folders=("one/bin", "two/bin")),
+    suite_text("BA-globall", "scenes: [one/bin, two/bin]\n", "one folder name",
+               folders=("one/bin", "two/bin")),
     *(suite_text(name, text, *expected) for name, text, expected in [
         ("BA-laughs", 'a: &a ["x","x"]\nb: &b [*a,*a]\nc: [*b,*b]\n', ["suite.yaml"]),
         ("BA-billion", "scenes: [SCENE]\ngrid: {seed: [0, 1, 2]}\n", ["seeds"]),

@@ -62,7 +62,8 @@ def edge_mapper(detector: str, part: Part, weights: str | Path | None = None) ->
 
 def write_scene(folder: str | Path, part: Part, views: int = 50, size: int = 800, seed: int = 0,
                 detector: str = "auto", weights: str | Path | None = None,
-                degradations: degrade.Degradations = degrade.Degradations(), progress: bool = False) -> Path:
+                degradations: degrade.Degradations = degrade.Degradations(), progress: bool = False,
+                lighting: str = "two-lights") -> Path:
     """Render `part` from `views` orbit cameras at `size` x `size` pixels into a new scene folder.
 
     Args:
@@ -70,6 +71,7 @@ def write_scene(folder: str | Path, part: Part, views: int = 50, size: int = 800
         seed: the seed of the degradations' random draws.
         detector: edge maps by this detector (see `edge_mapper`).
         degradations: what to spoil in the training views.
+        lighting: the images' look (`edgedog.synthetic.render.LIGHTINGS`).
     Returns:
         `folder`.
     """
@@ -85,7 +87,7 @@ def write_scene(folder: str | Path, part: Part, views: int = 50, size: int = 800
     partial = folder.with_name(f".{folder.name}.{uuid.uuid4().hex[:8]}.partial")
     create_folder(partial, exist_ok=False, named=folder)  # not mkdtemp: the usual permissions, not 0700
     try:
-        with Renderer(part.mesh, size, size) as renderer:
+        with Renderer(part.mesh, size, size, lighting) as renderer:
             for split, (cameras, spoil) in splits.items():
                 frames = _write_views(partial, split, cameras, renderer, edge_map, spoil, seed,
                                       progress and split == "train")
@@ -94,7 +96,8 @@ def write_scene(folder: str | Path, part: Part, views: int = 50, size: int = 800
                 (partial / f"transforms_{split}.json").write_text(json.dumps(transforms, indent=1))
         _write_ground_truth(partial / "gt", folder.name, part)
         manifest = {"shape": part.name, "dimensions": part.dimensions, "seed": seed, "views": views,
-                    "size": size, "edge_detector": name, "degradations": degradations.to_json()}
+                    "size": size, "edge_detector": name, "lighting": lighting,
+                    "degradations": degradations.to_json()}
         (partial / MANIFEST).write_text(json.dumps(manifest, indent=1))
         partial.rename(folder)
     except BaseException:

@@ -19,6 +19,7 @@ MAX_SIZE = 4096
 
 
 def add_parser(subparsers) -> None:
+    from edgedog.synthetic.render import LIGHTINGS
     from edgedog.synthetic.shapes import SHAPES
 
     parser = subparsers.add_parser(
@@ -56,6 +57,10 @@ def add_parser(subparsers) -> None:
                         help="edge maps by this detector (see `edgedog edges`), or 'exact': the visible "
                              "ground-truth curves (default auto)")
     parser.add_argument("--weights", type=Path, default=None, help=WEIGHTS_HELP)
+    parser.add_argument("--lighting", choices=LIGHTINGS, default="abc-nef",
+                        help="the images' grey shading: ABC-NEF's bright, soft look (fitted to its "
+                             "renders) or the built-in scenes' two lights, with stronger contrast "
+                             "between faces (default abc-nef)")
     spoil = parser.add_argument_group("degradations (training views only)")
     spoil.add_argument("--image-noise", type=float, default=0.0, metavar="STD",
                        help="Gaussian noise on the object's colours, std in [0, 1] units")
@@ -118,7 +123,8 @@ def run(args: argparse.Namespace) -> None:
     else:
         part, made = make_part(args.shape, args.seed), f"{args.shape} (seed {args.seed})"
     folder = write_scene(args.out, part, args.views, args.size, seed=args.seed, detector=args.detector,
-                         weights=args.weights, degradations=degradations, progress=True)
+                         weights=args.weights, degradations=degradations, progress=True,
+                         lighting=args.lighting)
     detector = read_json(folder / MANIFEST)["edge_detector"]
     print(f"{folder}: {made}, {degradations.keep_views or args.views} views at "
           f"{args.size}x{args.size} with {detector} edge maps, {len(part.curves)} feature curves, "

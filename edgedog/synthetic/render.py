@@ -1,9 +1,9 @@
 """Offscreen rendering of a mesh through EGL with ModernGL (no window, no display).
 
-Two passes per view: grey Lambertian shading under two fixed lights with multisampling, read
-back as RGBA with straight alpha on a transparent background (as ABC-NEF's renders); then a
-single-sample pass that stores each pixel's camera depth and world normal, for visibility and
-for tests against the geometry.
+Two passes per view: grey shading that depends on the world normal only (a fixed lighting, see
+LIGHTINGS) with multisampling, read back as RGBA with straight alpha on a transparent background
+(as ABC-NEF's renders); then a single-sample pass that stores each pixel's camera depth and world
+normal, for visibility and for tests against the geometry.
 """
 
 from __future__ import annotations
@@ -20,8 +20,18 @@ from edgedog.renderer.gl.context import offscreen_context
 from edgedog.scenes.camera import Camera
 from edgedog.synthetic.mesh import Mesh
 
-LIGHTS = np.array([[0.4, 0.5, 0.75], [-0.6, -0.3, 0.2]])  # world directions towards the lights
-AMBIENT, DIFFUSE = 0.15, 0.75 / 1.3
+ABC_NEF_IRRADIANCE = (0.746, 0.018, 0.012, 0.036, -0.037, -0.009, 0.003, 0.032, 0.040)
+"""Grey level (0-1) as order-2 spherical harmonics of the world normal n = (x, y, z), on the basis
+(1, x, y, z, xy, yz, xz, x^2 - y^2, 3z^2 - 1): least squares on ABC-NEF's renders of 00000006
+(its mesh drawn with its 50 cameras, 200,000 interior pixels, the near-white inside of its hole
+left out), residual 5.5 grey levels RMS. ABC-NEF's look: bright and soft, adjacent faces 10-40
+grey levels apart."""
+TWO_LIGHTS = ((0.4, 0.5, 0.75), (-0.6, -0.3, 0.2))
+"""World directions towards the two lights of the built-in scenes' look (ambient 0.15, diffuse
+0.75 / 1.3 each): faces 50-150 grey levels apart, for weight-free detectors."""
+LIGHTINGS = ("abc-nef", "two-lights")
+"""The looks `Renderer` draws; `edgedog make-scene` renders ABC-NEF's by default, the built-in scenes
+the two lights."""
 MAX_SAMPLES = 8  # multisampling; Mesa's software rasteriser offers 4
 NEAR, FAR = 0.1, 100.0  # clipping depths, world units
 
@@ -39,7 +49,22 @@ void main() {
     normal = in_normal;
 }
 """
-SHADED_FRAGMENT = """
+SHADED_FRAGMENTS = {
+    "abc-nef": """
+#version 330
+uniform float irradiance[9];
+in vec3 normal;
+out vec4 color;
+void main() {
+    vec3 n = normalize(normal);
+    float basis[9] = float[9](1.0, n.x, n.y, n.z, n.x * n.y, n.y * n.z, n.x * n.z, n.x * n.x - n.y * n.y,
+                              3.0 * n.z * n.z - 1.0);
+    float grey = 0.0;
+    for (int i = 0; i < 9; i++) grey += irradiance[i] * basis[i];
+    color = vec4(vec3(clamp(grey, 0.0, 1.0)), 1.0);
+}
+""",
+    "two-lights": """
 #version 330
 uniform vec3 lights[2];
 in vec3 normal;
@@ -47,9 +72,9 @@ out vec4 color;
 void main() {
     vec3 n = normalize(normal);
     float light = max(dot(n, lights[0]), 0.0) + max(dot(n, lights[1]), 0.0);
-    color = vec4(vec3(min(%.4f + %.4f * light, 1.0)), 1.0);
+    color = vec4(vec3(min(0.15 + 0.75 / 1.3 * light, 1.0)), 1.0);
 }
-""" % (AMBIENT, DIFFUSE)
+"""}
 GEOMETRY_FRAGMENT = """
 #version 330
 in vec3 normal;
@@ -96,25 +121,32 @@ class Renderer:
     Args:
         mesh: the triangles to draw.
         width, height: image size in pixels.
+        lighting: one of LIGHTINGS: "abc-nef" (ABC_NEF_IRRADIANCE) or "two-lights" (TWO_LIGHTS).
     """
 
-    def __init__(self, mesh: Mesh, width: int, height: int):
+    def __init__(self, mesh: Mesh, width: int, height: int, lighting: str = "two-lights"):
+        if lighting not in LIGHTINGS:
+            raise ValueError(f"lighting {lighting!r} is not one of {', '.join(LIGHTINGS)}")
         self.size = (width, height)
         self.ctx = create_context()
         try:
-            self._build(mesh)
+            self._build(mesh, lighting)
         except BaseException:
             self.ctx.release()
             raise
 
-    def _build(self, mesh: Mesh) -> None:
+    def _build(self, mesh: Mesh, lighting: str) -> None:
         ctx = self.ctx
         vertices = np.concatenate([mesh.positions, mesh.normals], axis=2).astype("f4")  # (T, 3, 6)
         buffer = ctx.buffer(vertices.tobytes())
         self.programs = [ctx.program(vertex_shader=VERTEX_SHADER, fragment_shader=fragment)
-                         for fragment in (SHADED_FRAGMENT, GEOMETRY_FRAGMENT)]
-        lights = LIGHTS / np.linalg.norm(LIGHTS, axis=1, keepdims=True)
-        self.programs[0]["lights"].write(lights.astype("f4").tobytes())
+                         for fragment in (SHADED_FRAGMENTS[lighting], GEOMETRY_FRAGMENT)]
+        if lighting == "abc-nef":
+            self.programs[0]["irradiance"].write(np.array(ABC_NEF_IRRADIANCE, "f4").tobytes())
+        else:
+            lights = np.array(TWO_LIGHTS)
+            lights /= np.linalg.norm(lights, axis=1, keepdims=True)
+            self.programs[0]["lights"].write(lights.astype("f4").tobytes())
         self.arrays = [ctx.vertex_array(program, [(buffer, "3f 3f", "in_position", "in_normal")])
                        for program in self.programs]
         samples = min(MAX_SAMPLES, ctx.max_samples)
