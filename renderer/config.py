@@ -6,7 +6,9 @@ The constants are mirrored in csrc/constants.h; tests check that both sides agre
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal
+from typing import Annotated, Literal
+
+from edgedog.settings import Range, Settings
 
 TILE_SIZE = 16
 """Tiles are TILE_SIZE x TILE_SIZE pixels."""
@@ -21,14 +23,17 @@ alike instead of falling on either side of a tie."""
 FRUSTUM_SLACK = 1.3
 """The EWA Jacobian is evaluated at directions clamped to 1.3x the half field of view."""
 
-Kernel = Literal["gaussian", "dog"]
+Kernel = Literal["dog", "gaussian"]
+"""A primitive's footprint: EdgeDoG's centre-surround 'dog', or the plain 3DGS 'gaussian'."""
 KActivation = Literal["sigmoid", "exp"]
+"""How the raw DoG parameters k become (a, t) (docs/METHOD.md)."""
 Backend = Literal["kernels", "torch"]
 
 
 @dataclass(frozen=True)
-class RasterConfig:
-    """How primitives are turned into pixels.
+class RasterConfig(Settings):
+    """How primitives are turned into pixels: a section of settings (`edgedog.settings`), each
+    field checked by its type when one is made.
 
     Attributes:
         kernel: "dog" for EdgeDoG's centre-surround footprint, "gaussian" for the plain 3DGS
@@ -44,16 +49,6 @@ class RasterConfig:
 
     kernel: Kernel = "dog"
     k_activation: KActivation = "sigmoid"
-    eps2d: float = 0.3
+    eps2d: Annotated[float, Range(0)] = 0.3
     background: tuple[float, ...] | None = None
     backend: Backend = "kernels"
-
-    def __post_init__(self):
-        if self.kernel not in ("gaussian", "dog"):
-            raise ValueError(f"kernel must be 'gaussian' or 'dog', got {self.kernel!r}")
-        if self.k_activation not in ("sigmoid", "exp"):
-            raise ValueError(f"k_activation must be 'sigmoid' or 'exp', got {self.k_activation!r}")
-        if self.backend not in ("kernels", "torch"):
-            raise ValueError(f"backend must be 'kernels' or 'torch', got {self.backend!r}")
-        if not self.eps2d >= 0:
-            raise ValueError(f"eps2d must be >= 0, got {self.eps2d}")

@@ -11,8 +11,10 @@ from dataclasses import dataclass, field
 from typing import Annotated
 
 import pytest
+from edgedog.renderer.config import KActivation, Kernel, RasterConfig
 
-from edgedog.curves.config import ExtractConfig
+from edgedog.curves.config import ExtractConfig, ExtractSettings
+from edgedog.curves.config import with_overrides as extract_overrides
 from edgedog.edges.registry import is_detector_name, make_detector, require_detector
 from edgedog.errors import ConfigError, InputError
 from edgedog.settings import Check, Range, Settings, setting_paths, setting_types
@@ -22,6 +24,7 @@ from edgedog.train.config import (
     MAX_LAYERS,
     PRESETS,
     RENAMED,
+    ModelSettings,
     TrainConfig,
     from_dict,
     preset,
@@ -222,11 +225,50 @@ def test_overrides_read_values_by_type():
     assert with_overrides(TrainConfig(), ["direction_factor=none"]).loss.direction_factor is None
 
 
-def test_other_settings_classes_get_the_same_parsing():
-    """with_overrides reads `edgedog extract --set` too: NaN is refused there as well."""
-    assert settings_with_overrides(ExtractConfig(), ["min_opacity=0.3"]).min_opacity == 0.3
-    with pytest.raises(ConfigError, match=r"--set 'min_opacity=nan': min_opacity must be a number, got nan"):
-        settings_with_overrides(ExtractConfig(), ["min_opacity=nan"])
+# --- the extraction's and the rasterizer's settings: the same types, parser and errors
+@pytest.mark.parametrize(("assignment", "message"), [
+    ("extract.min_opacity=bad", "extract.min_opacity must be a number in [0, 1], got 'bad'"),
+    ("min_opacity=nan", "extract.min_opacity must be a number in [0, 1], got nan"),
+    ("extract.link_angle=95", "extract.link_angle must be a number in (0, 90), got 95.0"),
+    ("extract.outlier_neighbours=1", "extract.outlier_neighbours must be an integer in [2, 256], got 1"),
+    ("extract.node_spacing=0", "extract.node_spacing must be a number in (0, 1], got 0.0"),
+    ("extract.max_outlier_share=1", "extract.max_outlier_share must be a number in [0, 1), got 1.0"),
+    ("extract.filter_outliers=maybe", "extract.filter_outliers must be one of auto, on, off, got 'maybe'"),
+    ("extract.filter_opacity=2", "extract.filter_opacity must be true or false, got '2'"),
+    ("extract.bogus=1", "unknown setting 'extract.bogus'"),
+])
+def test_a_bad_extraction_override_is_one_line_naming_the_key_and_the_range(assignment, message):
+    with pytest.raises(ConfigError) as error:
+        extract_overrides(ExtractConfig(), [assignment])
+    text = str(error.value)
+    assert text.startswith(f"--set {assignment!r}: {message}") and "\n" not in text
+
+
+def test_extraction_overrides_take_dotted_and_bare_names():
+    config = extract_overrides(ExtractConfig(), ["extract.min_opacity=0.3", "link_distance=0.03",
+                                                 "filter_outliers=auto", "extract.filter_silhouette=off"])
+    assert config == ExtractConfig(min_opacity=0.3, link_distance=0.03, filter_outliers="auto",
+                                   filter_silhouette=False)
+    assert setting_paths(ExtractSettings)["extract.seed"] is setting_types(ExtractConfig)["seed"]
+
+
+def test_extraction_and_raster_settings_are_checked_when_made():
+    with pytest.raises(ConfigError, match=r"^corner_angle must be a number in \(0, 90\), got 90$"):
+        ExtractConfig(corner_angle=90)
+    with pytest.raises(ConfigError, match=r"^eps2d must be a number >= 0, got -0.1$"):
+        RasterConfig(eps2d=-0.1)
+    with pytest.raises(ConfigError, match=r"^kernel must be one of dog, gaussian, got 'box'$"):
+        RasterConfig(kernel="box")
+    with pytest.raises(ConfigError, match=r"^background must be a list, each a number, or none, got \["):
+        RasterConfig(background=[0.1, math.nan])
+    assert RasterConfig(background=[0, 0.5], eps2d=1).background == (0.0, 0.5)
+
+
+def test_the_kernel_literals_are_defined_once():
+    """The training settings' model.kernel and model.k_activation are the rasterizer's own types."""
+    model, raster = setting_types(ModelSettings), setting_types(RasterConfig)
+    assert model["kernel"] is raster["kernel"] is Kernel
+    assert model["k_activation"] is raster["k_activation"] is KActivation
 
 
 # --- presets and schedules

@@ -443,3 +443,7 @@ def test_cli_extract_errors_are_one_line(tmp_path):
     result = subprocess.run([sys.executable, "-m", "edgedog", "extract", tmp_path, "--set", "bogus=1"],
                             capture_output=True, text=True)
     assert result.returncode == 2 and "bogus" in result.stderr
+    result = subprocess.run([sys.executable, "-m", "edgedog", "extract", tmp_path, "--set",
+                             "extract.link_angle=bad"], capture_output=True, text=True)
+    assert result.returncode == 2 and result.stderr.count("\n") == 1
+    assert "--set 'extract.link_angle=bad': extract.link_angle must be a number in (0, 90)" in result.stderr

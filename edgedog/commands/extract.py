@@ -21,15 +21,15 @@ def add_parser(subparsers) -> None:
                     "per layer and per cumulative stack in RUN/curves/NAME (L0, L1, L0+L1, ...).")
     parser.add_argument("run_dir", metavar="RUN", type=Path, help="run folder written by `edgedog train`")
     parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                        help="override a setting of edgedog.curves.config.ExtractConfig (repeatable)")
+                        help="override a setting of edgedog.curves.config.ExtractConfig (repeatable): "
+                             "KEY is extract.FIELD (extract.min_opacity=0.3), or the bare FIELD")
     parser.set_defaults(run=run)
 
 
 def run(args: argparse.Namespace) -> None:
-    from edgedog.curves.config import ExtractConfig
+    from edgedog.curves.config import ExtractConfig, with_overrides
     from edgedog.curves.extract import OUTPUTS, run_scene
     from edgedog.curves.report import REPORT, extract_with_report
-    from edgedog.settings import with_overrides
     from edgedog.train.layered import is_layered
     from edgedog.train.run_folder import RunLock, is_run_folder
 

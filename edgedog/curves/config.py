@@ -1,4 +1,7 @@
-"""Typed settings of curve extraction (`edgedog extract RUN --set key=value`).
+"""Typed settings of curve extraction: `ExtractConfig`, one section of settings as
+`edgedog.settings` defines them (each field's allowed values in its type, checked when one is
+made), and `with_overrides`, which reads `edgedog extract RUN --set extract.FIELD=VALUE` (or the
+bare FIELD) as `edgedog train --set` reads a run's settings.
 
 Lengths of the grouping and fitting stages are fractions of the scene size: the diagonal of
 the bounding box of the filtered points (about 1.4 for an ABC object, where 1 unit = 1000 mm).
@@ -6,20 +9,35 @@ the bounding box of the filtered points (about 1.4 for an ABC object, where 1 un
 
 from __future__ import annotations
 
-import dataclasses
-from dataclasses import dataclass
-from typing import Literal
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+from typing import Annotated, Literal
 
-from edgedog.errors import ConfigError
-from edgedog.settings import check_setting
+from edgedog.settings import Range, Settings, to_dict
+from edgedog.settings import with_overrides as settings_with_overrides
 
 OutlierFilter = Literal["auto", "on", "off"]
 """When the statistical outlier filter runs: 'on', 'off', or 'auto' (where the silhouette filter
 does not)."""
 
+MAX_NEIGHBOURS = 256
+"""Neighbour counts size (N, k) arrays of KD-tree queries: EdgeGaussians' outlier filter takes 25,
+the principal axes 32."""
+MAX_SMOOTHING_ITERATIONS = 50
+"""Each smoothing iteration is a pass of ball queries over every point; a few already merge
+nearby parallel edges."""
+
+Share = Annotated[float, Range(0, 1)]
+SceneLength = Annotated[float, Range(0, 1, open_low=True)]
+"""A length as a fraction of the scene size: no two points are further apart than 1, and a radius
+that large makes every point every other's neighbour."""
+Angle = Annotated[float, Range(0, 90, open_low=True, open_high=True)]
+"""Degrees between two directions (undirected: at most 90)."""
+Neighbours = Annotated[int, Range(2, MAX_NEIGHBOURS)]
+
 
 @dataclass(frozen=True)
-class ExtractConfig:
+class ExtractConfig(Settings):
     """Every setting of `extract`. Each filter can be switched off on its own.
 
     The grouping and fitting defaults were chosen on a noisy ABC run (primitives ~9 mm from the
@@ -28,14 +46,14 @@ class ExtractConfig:
 
     # --- filters (EdgeGaussians' post-processing, and a silhouette test)
     filter_opacity: bool = True
-    min_opacity: float = 0.2
+    min_opacity: Share = 0.2
     """Keep primitives whose (activated) opacity is above this."""
     filter_projection: bool = True
-    min_edge_value: float = 0.1
+    min_edge_value: Share = 0.1
     """Keep points whose edge-map value, averaged over ALL views, is above this (a view that does
     not see the point counts as 0)."""
     filter_silhouette: bool = True
-    max_outside_pixels: float = 4.0
+    max_outside_pixels: Annotated[float, Range(0)] = 4.0
     """Keep points that land at most this many pixels (of the run's views) outside the object's
     mask in every view; skipped on scenes without masks. Edge maps also draw the occluding
     contours of curved surfaces, which move with the view and are not edges of the object;
@@ -49,75 +67,70 @@ class ExtractConfig:
     silhouette filter removes the floaters, 'auto' gains up to 3.7 F10), while multi-view ghosts
     inside the object's silhouette, which no mask removes, are what it is there for (the built-in
     part: 'auto' loses 2.8 to 5.2 F10). docs/notes/2026-11-25-outlier-filter.md."""
-    outlier_neighbours: int = 8
+    outlier_neighbours: Neighbours = 8
     """EdgeGaussians use 25 neighbours; an edge held by fewer primitives than that reaches across
     to other edges and is dropped whole, so 8 (docs/BENCHMARKS.md)."""
-    outlier_std: float = 2.0
+    outlier_std: Annotated[float, Range(0)] = 2.0
 
     # --- directions
-    min_elongation: float = 1.5
+    min_elongation: Annotated[float, Range(1)] = 1.5
     """A primitive's own axis (largest scale) is its direction when largest / middle scale is at
     least this; rounder primitives get the principal axis of their neighbourhood instead."""
-    direction_neighbours: int = 32
+    direction_neighbours: Neighbours = 32
     """Neighbourhood size of those principal axes."""
 
     # --- grouping (fractions of the scene size)
-    smoothing_radius: float = 0.015
+    smoothing_radius: SceneLength = 0.015
     """Points move across their direction onto the centre of the agreeing points this close
     (directions are re-estimated from the same neighbours)."""
-    smoothing_iterations: int = 1
+    smoothing_iterations: Annotated[int, Range(0, MAX_SMOOTHING_ITERATIONS)] = 1
     """More iterations thin the point tube further but merge nearby parallel edges."""
-    node_spacing: float = 0.006
+    node_spacing: SceneLength = 0.006
     """Spacing of the chain vertices the points are thinned to."""
-    link_distance: float = 0.06
+    link_distance: SceneLength = 0.06
     """Longest link between two vertices of a chain (each vertex links only among its 8
     nearest). 0.03 before: 0.06 bridges the sparse stretches of faint curved edges; on 21 ABC
     runs F10 +0.37 on average, at worst -1.2 (docs/BENCHMARKS.md)."""
-    join_distance: float = 0.045
+    join_distance: SceneLength = 0.045
     """Longest gap bridged between two chain ends that face each other (a curve broken where
     points are missing; the two ends of a circle)."""
-    link_angle: float = 30.0
+    link_angle: Angle = 30.0
     """Degrees: linked vertices' directions, and the vector between them, agree within this."""
-    corner_angle: float = 60.0
+    corner_angle: Angle = 60.0
     """Degrees: a chain is split where it turns more than this over a few vertices."""
-    min_chain_vertices: int = 4
+    min_chain_vertices: Annotated[int, Range(2)] = 4
     """Shorter chains are dropped as noise unless an end meets a longer chain's end (within
     `snap_radius`: a short edge between corners), and shorter side branches are pruned."""
 
     # --- fitting (fractions of the scene size)
-    line_tolerance: float = 0.004
+    line_tolerance: SceneLength = 0.004
     """A chain is a line when RANSAC finds one holding all but `max_outlier_share` of its vertices
     within this distance; also the collinearity tolerance of merges."""
-    max_outlier_share: float = 0.05
-    bezier_tolerance: float = 0.002
+    max_outlier_share: Annotated[float, Range(0, 1, open_high=True)] = 0.05
+    bezier_tolerance: SceneLength = 0.002
     """A cubic Bézier is kept when its RMS distance to the chain is below this; else it is split.
     At 0.004 (7 mm on an ABC object) one Bézier cut up to 7.7 mm inside a rounded part;
     0.002 raised F5 on all four ABC runs measured (docs/BENCHMARKS.md) for 3 to 8 more curves."""
-    snap_radius: float = 0.01
+    snap_radius: SceneLength = 0.01
     """Curve ends this close, or whose extensions meet within it, are snapped to one junction
     point; a chain end this close to another chain's interior splits it there (a T)."""
-    seed: int = 0
+    seed: Annotated[int, Range(0)] = 0
     """Seed of RANSAC."""
 
-    def __post_init__(self):
-        for name in ("outlier_neighbours", "direction_neighbours", "min_chain_vertices"):
-            if getattr(self, name) < 2:
-                raise ConfigError(f"{name} must be at least 2, got {getattr(self, name)}")
-        if self.smoothing_iterations < 0:
-            raise ConfigError(f"smoothing_iterations must be >= 0, got {self.smoothing_iterations}")
-        for name in ("smoothing_radius", "node_spacing", "link_distance", "join_distance", "line_tolerance",
-                     "bezier_tolerance", "snap_radius"):
-            if not getattr(self, name) > 0:
-                raise ConfigError(f"{name} must be positive, got {getattr(self, name)}")
-        for name in ("link_angle", "corner_angle"):
-            if not 0 < getattr(self, name) < 90:
-                raise ConfigError(f"{name} must be in (0, 90) degrees, got {getattr(self, name)}")
-        check_setting("filter_outliers", OutlierFilter, self.filter_outliers)
-        if not self.max_outside_pixels >= 0:
-            raise ConfigError(f"max_outside_pixels must be >= 0, got {self.max_outside_pixels}")
-        if not 0 <= self.max_outlier_share < 1:
-            raise ConfigError(f"max_outlier_share must be in [0, 1), got {self.max_outlier_share}")
+
+@dataclass(frozen=True)
+class ExtractSettings(Settings):
+    """What `edgedog extract --set` names: the section `extract` (`extract.min_opacity`; the bare
+    `min_opacity` names it too)."""
+
+    extract: ExtractConfig = field(default_factory=ExtractConfig)
 
 
-def to_dict(config: ExtractConfig) -> dict:
-    return dataclasses.asdict(config)
+def with_overrides(config: ExtractConfig, assignments: Iterable[str]) -> ExtractConfig:
+    """`config` with the `--set KEY=VALUE` strings applied (KEY `extract.FIELD` or FIELD), each
+    value read by its setting's type; a bad one raises ConfigError naming it and its range."""
+    return settings_with_overrides(ExtractSettings(config), assignments).extract
+
+
+__all__ = ["MAX_NEIGHBOURS", "MAX_SMOOTHING_ITERATIONS", "ExtractConfig", "ExtractSettings", "OutlierFilter",
+           "to_dict", "with_overrides"]

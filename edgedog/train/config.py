@@ -16,6 +16,7 @@ from typing import Annotated, Any, Literal
 
 from edgedog.errors import ConfigError
 from edgedog.init.settings import MAX_LOGIT, MAX_PRIMITIVES, Count, InitSettings, Logit
+from edgedog.renderer.config import KActivation, Kernel
 from edgedog.settings import (
     Check,
     Range,
@@ -92,8 +93,6 @@ Weighting = Literal["one", "exp_neg", "one_minus", "up", "exp"]
 EdgeProfile = Literal["auto", "raw", "thin", "profile"]
 MapCorrection = Literal["none", "calibrated", "shift", "learned"]
 SilhouetteCorrection = Literal["auto", "measured", "none"]
-Kernel = Literal["dog", "gaussian"]
-KActivation = Literal["sigmoid", "exp"]
 
 
 @dataclass(frozen=True)
