@@ -10,7 +10,7 @@ SUDO   := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 DEB_PACKAGES := xvfb libegl1 libgl1-mesa-dri
 EXT_SOURCES  := $(wildcard csrc/*.cpp csrc/*.h csrc/*.cu) setup.py
 
-.PHONY: all setup system-deps build demo test test-fast lint docs screenshots clean
+.PHONY: all setup system-deps build demo test test-fast lint docs screenshots cad-scenes clean
 
 all: setup
 
@@ -74,6 +74,15 @@ screenshots: setup
 		xvfb-run -a -s "-screen 0 1600x1000x24" $(BIN)/edgedog studio --size 1600x1000 --runs $$runs \
 			--script $$script || exit 1; \
 		rm -rf $$runs; \
+	done
+
+# The CAD benchmark's scenes (docs/suites/cad-benchmark.yaml): the 42 designs of the procedural
+# family, ABC-NEF style (50 views at 800 px, PiDiNet maps), about 2 minutes each on 2 cores; the
+# ones already made are kept.
+CAD_SCENES := bench/cad-benchmark/scenes
+cad-scenes: setup
+	for i in $$(seq -w 0 41); do \
+		[ -d $(CAD_SCENES)/family-$$i ] || $(BIN)/edgedog make-scene --family $$i --out $(CAD_SCENES)/family-$$i || exit 1; \
 	done
 
 clean:
