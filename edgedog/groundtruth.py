@@ -4,6 +4,10 @@ providers that find them beside a scene (`ground_truth_for`).
 Two sources: the CAD model (mesh .obj + feature curves .yml + bbox stats .json), resampled
 here, or a pre-sampled point .ply (EMAP's `sampled_pts/<id>_0.005.ply`). Points are in the
 ground-truth frame: the object normalised into [0, 1]^3, where 1 unit = 1000 "mm".
+
+The curves themselves, with an identity (`GroundTruthCurve`: id, type, dihedral sign), come from
+the features file (`abc_curves`): through the mesh where there is one, which also gives each
+curve's dihedral sign, and otherwise from the file's own line and circle parameters.
 """
 
 from __future__ import annotations
@@ -23,6 +27,8 @@ from edgedog.metrics import MAX_SAMPLES, sample_count, sample_line
 
 GT_SPACING = 0.005
 """Resampling step along each feature curve, in raw CAD units (the protocol's value)."""
+CURVE_TYPES = {"Line": "line", "Circle": "circle", "Ellipse": "ellipse", "BSpline": "bspline"}
+"""ABC's curve types -> the names reports use; any other type is "other"."""
 
 
 @dataclass(frozen=True)
@@ -32,7 +38,8 @@ class GroundTruthSource:
     Attributes:
         scan_id: the ABC object id, e.g. "00000006".
         sampled_ply: a pre-sampled point cloud, used when present.
-        obj, features, stats: the CAD files, used otherwise.
+        obj, features, stats: the CAD files, used otherwise; beside a sampled_ply, those found
+            (the features and stats without the mesh in EMAP's copy) give the curves' identity.
     """
 
     scan_id: str
@@ -155,32 +162,158 @@ def check_sample_count(polylines: list[np.ndarray], features: Path) -> None:
 def sharp_polylines(vertices: np.ndarray, features: Path, obj: Path) -> list[np.ndarray]:
     """The sharp curves of an ABC features file, each as its (M, 3) polyline through `vertices`
     (V, 3), the vertices of the mesh file `obj` it indexes."""
-    document = read_yaml(features)  # bounded: a deeply nested file crashed the C parser
-    if not isinstance(document, dict) or "curves" not in document:
-        raise InputError(features, "not an ABC features file (no 'curves')")
-    curves = document["curves"]
-    polylines = [vertices[indices] for indices in _sharp_curves(curves, len(vertices), features, obj)]
+    curves = _sharp_curves(_feature_curves(features), features)
+    polylines = [vertices[_indices(curve, number, len(vertices), features, obj)] for number, curve in curves]
     if not polylines:
         raise InputError(features, "no sharp feature curves")
     return polylines
 
 
-def _sharp_curves(curves, vertex_count: int, features: Path, obj: Path) -> list[np.ndarray]:
-    """Vertex indices of each sharp curve of an ABC features file's `curves` list."""
-    if not isinstance(curves, list):
+def _feature_curves(features: Path) -> list:
+    """The `curves` list of an ABC features file."""
+    document = read_yaml(features)  # bounded: a deeply nested file crashed the C parser
+    if not isinstance(document, dict) or "curves" not in document:
+        raise InputError(features, "not an ABC features file (no 'curves')")
+    if not isinstance(document["curves"], list):
         raise InputError(features, "'curves' is not a list")
-    sharp = []
-    for number, curve in enumerate(curves):
-        try:
-            if not curve.get("sharp", False):
-                continue
-            indices = np.asarray(curve["vert_indices"], dtype=np.int64).reshape(-1)
-        except (AttributeError, KeyError, TypeError, ValueError):
-            raise InputError(features, f"curve {number} has no list of integer vert_indices") from None
-        if indices.size and (indices.min() < 0 or indices.max() >= vertex_count):
-            raise InputError(features, f"curve {number} indexes vertices outside {obj.name}")
-        sharp.append(indices)
-    return sharp
+    return document["curves"]
+
+
+def _sharp_curves(curves: list, features: Path) -> list[tuple[int, dict]]:
+    """(number in the file, record) of each sharp curve of an ABC features file's `curves`."""
+    try:
+        return [(number, curve) for number, curve in enumerate(curves) if curve.get("sharp", False)]
+    except AttributeError:
+        raise InputError(features, "a curve is not a mapping") from None
+
+
+def _indices(curve: dict, number: int, vertex_count: int, features: Path, obj: Path) -> np.ndarray:
+    """(M,) vertex indices of one curve record, checked against a mesh of `vertex_count` vertices."""
+    try:
+        indices = np.asarray(curve["vert_indices"], dtype=np.int64).reshape(-1)
+    except (KeyError, TypeError, ValueError):
+        raise InputError(features, f"curve {number} has no list of integer vert_indices") from None
+    if indices.size and (indices.min() < 0 or indices.max() >= vertex_count):
+        raise InputError(features, f"curve {number} indexes vertices outside {obj.name}")
+    return indices
+
+
+@dataclass(frozen=True)
+class GroundTruthCurve:
+    """One ground-truth curve and its identity, in the ground-truth frame.
+
+    Attributes:
+        id: its number: the curve's index in the features file (ABC) or in the scene's curves
+            file (a generated scene).
+        type: line, circle, ellipse, bspline or other.
+        dihedral: convex or concave (the sign of the dihedral angle at the edge: the material's
+            wedge under or over 180 degrees), or unknown.
+        polyline: (M, 3) vertices along it, no farther apart than the protocol's spacing where
+            the curve is not straight.
+    """
+
+    id: int
+    type: str
+    dihedral: str
+    polyline: np.ndarray
+
+    @property
+    def length(self) -> float:
+        return float(np.linalg.norm(np.diff(self.polyline, axis=0), axis=1).sum())
+
+
+def abc_curves(source: GroundTruthSource) -> list[GroundTruthCurve] | None:
+    """The sharp curves of an ABC object with their identity, or None when `source` has no
+    features file. With the mesh (`source.obj`): the polylines through its vertices and each
+    curve's dihedral sign from the two triangles along it (`mesh_dihedral`). Without it: lines
+    and circles from the file's own parameters (`analytic_polyline`; other types are left
+    out), dihedral unknown."""
+    if source.features is None or source.stats is None:
+        return None
+    curves = _sharp_curves(_feature_curves(source.features), source.features)
+    scale, offset = normalisation(source.stats, source.scan_id)
+    if source.obj is not None:
+        vertices, faces = read_obj_vertices(source.obj), read_obj_faces(source.obj)
+        corners = [_indices(curve, number, len(vertices), source.features, source.obj)
+                   for number, curve in curves]
+        dihedrals = [mesh_dihedral(vertices, faces, indices) for indices in corners]
+        polylines = [vertices[indices] for indices in corners]
+    else:
+        polylines = [analytic_polyline(curve) for _, curve in curves]
+        dihedrals = ["unknown"] * len(curves)
+    return [GroundTruthCurve(number, CURVE_TYPES.get(curve.get("type"), "other"), dihedral,
+                             line * scale + offset)
+            for (number, curve), line, dihedral in zip(curves, polylines, dihedrals) if line is not None]
+
+
+def analytic_polyline(curve: dict) -> np.ndarray | None:
+    """(M, 3) raw vertices of an ABC line or circle record from its own parameters, None for
+    another type or a malformed record. Lines: location + t direction at the vertices'
+    parameters. Circles: vertices at equal angles from the first parameter to the last (the
+    intermediate parameters of ABC's files are not angles); this reproduces EMAP's sampled
+    points of 00004926 exactly."""
+    try:
+        t = np.asarray(curve["vert_parameters"], dtype=np.float64).reshape(-1)
+        location = np.asarray(curve["location"], dtype=np.float64).reshape(3)
+        if curve["type"] == "Line":
+            line = location + t[:, None] * np.asarray(curve["direction"], dtype=np.float64).reshape(3)
+        elif curve["type"] == "Circle":
+            angles = np.linspace(t[0], t[-1], len(t))[:, None]
+            axes = (np.asarray(curve[key], dtype=np.float64).reshape(3) for key in ("x_axis", "y_axis"))
+            radius = float(curve["radius"])
+            line = location + radius * (np.cos(angles) * next(axes) + np.sin(angles) * next(axes))
+        else:
+            return None
+    except (KeyError, TypeError, ValueError, IndexError):
+        return None
+    return line if len(line) >= 2 and np.all(np.isfinite(line)) else None
+
+
+def read_obj_faces(path: Path) -> np.ndarray:
+    """(T, 3) int64 0-based vertex indices of the triangles (`f` records) of a Wavefront OBJ;
+    polygons with more corners are fanned into triangles."""
+    triangles = []
+    try:
+        for line in path.read_text(encoding="utf-8").splitlines():
+            if line.startswith("f "):
+                corners = [int(corner.split("/")[0]) - 1 for corner in line.split()[1:]]
+                triangles += [(corners[0], corners[k], corners[k + 1]) for k in range(1, len(corners) - 1)]
+    except UnicodeDecodeError:
+        raise InputError(path, "not a text OBJ file") from None
+    except ValueError:
+        raise InputError(path, "malformed face record") from None
+    return np.array(triangles, dtype=np.int64).reshape(-1, 3)
+
+
+def mesh_dihedral(vertices: np.ndarray, faces: np.ndarray, indices: np.ndarray) -> str:
+    """The dihedral sign along a curve through mesh vertices: "convex" where, across the mesh
+    edges it follows, one triangle runs against the other's outward normal (counter-clockwise
+    corners seen from outside), "concave" where it runs along it; the majority of the curve's
+    segments decides, "unknown" where no segment has exactly two triangles.
+
+    Args:
+        vertices: (V, 3) mesh vertices; faces: (T, 3) their triangles; indices: (M,) the curve's
+            vertices in order.
+    """
+    count = len(vertices)
+    pairs = np.sort(np.stack([faces, np.roll(faces, -1, axis=1)], axis=2).reshape(-1, 2), axis=1)
+    keys = pairs[:, 0] * count + pairs[:, 1]
+    order = np.argsort(keys, kind="stable")
+    sorted_keys = keys[order]
+    votes = 0
+    for a, b in zip(indices[:-1], indices[1:]):
+        key = min(a, b) * count + max(a, b)
+        lo, hi = np.searchsorted(sorted_keys, [key, key + 1])
+        if hi - lo != 2:
+            continue
+        first, second = faces[order[lo:hi] // 3]
+        tangent = vertices[b] - vertices[a]
+        third = vertices[[c for c in first if c not in (a, b)][0]] - vertices[a]
+        inward = third - tangent * (third @ tangent) / max(tangent @ tangent, 1e-300)
+        p = vertices[second]
+        normal = np.cross(p[1] - p[0], p[2] - p[0])
+        votes += int(np.sign(inward @ normal))
+    return "unknown" if votes == 0 else ("convex" if votes < 0 else "concave")
 
 
 class GroundTruthProvider(abc.ABC):
@@ -215,13 +348,15 @@ class AbcFolderProvider(GroundTruthProvider):
     def find(self, scene_root: Path, scan_id: str) -> GroundTruthSource | None:
         for folder in (f for f in self.folders(scene_root) if f.is_dir()):
             plys = sorted(folder.glob(f"**/{scan_id}_{GT_SPACING}.ply"))
-            if plys:
-                return GroundTruthSource(scan_id, sampled_ply=plys[0])
             features = sorted(folder.glob(f"**/{scan_id}*features*.yml"))
             objs = sorted(folder.glob(f"**/{scan_id}*.obj"))
             stats = sorted(folder.glob("**/stats.json")) + sorted(folder.glob("**/*_stats.json"))
-            stats = [s for s in stats if _mentions(s, scan_id)] if features and objs else []
-            if stats:
+            stats = [s for s in stats if _mentions(s, scan_id)] if features and (objs or plys) else []
+            if plys:
+                return GroundTruthSource(scan_id, sampled_ply=plys[0], obj=next(iter(objs), None),
+                                         features=features[0] if stats else None,
+                                         stats=next(iter(stats), None))
+            if stats and objs:
                 return GroundTruthSource(scan_id, obj=objs[0], features=features[0], stats=stats[0])
         return None
 

@@ -1,4 +1,5 @@
-"""`edgedog eval PRED --scene SCENE | --gt POINTS.ply`: score predicted edges by the ABC protocol."""
+"""`edgedog eval PRED --scene SCENE | --gt POINTS.ply [--per-curve]`: score predicted edges by the
+ABC protocol, and with --per-curve diagnose every ground-truth curve (`edgedog.diagnosis`)."""
 
 from __future__ import annotations
 
@@ -24,7 +25,8 @@ def add_parser(subparsers) -> None:
         description="Score predicted 3D edges: EMAP's parametric_edges.json, a PLY of points or "
                     "edges, or an OBJ of polylines. Curves are sampled every 5 mm, voxel-averaged "
                     "on a 256^3 grid over [-1, 1]^3 and compared with the ground-truth points.")
-    parser.add_argument("pred", type=Path, help="predicted edges (.json, .ply or .obj)")
+    parser.add_argument("pred", type=Path,
+                        help="predicted edges (.json, .ply or .obj), or a run folder (its curves.json)")
     source = parser.add_mutually_exclusive_group(required=True)
     source.add_argument("--scene", type=Path, help="scene folder whose ground truth to use")
     source.add_argument("--gt", type=Path, help="ground-truth points .ply (in the ground-truth frame)")
@@ -37,7 +39,27 @@ def add_parser(subparsers) -> None:
                         help="where to write the metrics (default: PRED's name + .eval.json, replaced by "
                              "each eval); never a run's own file nor inside a scene folder")
     parser.add_argument("--force", action="store_true", help="replace the --json file if it exists")
+    parser.add_argument("--per-curve", action="store_true",
+                        help="with --scene: a row per ground-truth curve (id, type, kind: outline, convex "
+                             "or concave, length, recall at 5/10/20 mm) saying where a missed one was "
+                             "lost (occluded, not drawn in the maps, no primitive, which extraction "
+                             "filter, curve fitting), the predicted curves on no edge and why, and recall "
+                             "by kind and type; in the --json file under 'per_curve'")
     parser.set_defaults(run=run)
+
+
+RUN_CURVES = ("curves.json", "curves.obj", "curves.ply")
+"""A run folder's curve files, the first found is scored."""
+
+
+def prediction_and_run(pred: Path) -> tuple[Path, Path | None]:
+    """The curve file to score and the run folder it belongs to (None for a file outside one)."""
+    if pred.is_dir():
+        found = next((pred / name for name in RUN_CURVES if (pred / name).is_file()), None)
+        if found is None:
+            raise InputError(pred, f"a folder without {' or '.join(RUN_CURVES)}: not an extracted run")
+        return found, pred
+    return pred, pred.parent if (pred.parent / "log.json").is_file() else None
 
 
 def score_file(pred: Path, gt_points, world_to_gt=None, voxelize: bool = True) -> EdgeMetrics:
@@ -54,12 +76,15 @@ def score_file(pred: Path, gt_points, world_to_gt=None, voxelize: bool = True) -
 
 
 def run(args: argparse.Namespace) -> None:
+    if args.per_curve and args.scene is None:
+        raise InputError(args.gt, "--per-curve needs --scene: the curves, cameras and maps, not only points")
     default = args.pred.with_name(args.pred.name + ".eval.json")
     out = args.json or default
     if args.json is None and enclosing_scene(default) is not None:  # the user named no output there
         raise OutputError(default, "would lie inside a scene folder, where edgedog never writes: pass "
                                    "--json FILE outside it")
     check_new_file(out, args.force, default)  # before the work, not after it
+    args.pred, run_folder = prediction_and_run(args.pred)
     if args.scene is not None:
         scene = load_scene(args.scene)
         ground_truth = ground_truth_for(scene.root)
@@ -73,6 +98,12 @@ def run(args: argparse.Namespace) -> None:
     metrics = score_file(args.pred, gt_points, world_to_gt, voxelize=not args.no_voxel)
     print(f"{args.pred}  vs  {gt_source}")
     print(metrics.table())
+    report = {}
+    if args.per_curve:
+        diagnosis = per_curve(args.pred, run_folder, scene, ground_truth, gt_points, world_to_gt,
+                              not args.no_voxel)
+        print(diagnosis.table())
+        report = {"per_curve": diagnosis.to_dict()}
     with output_file(out, args.force, default):
         atomic_write_json(out, {
             "prediction": str(args.pred.resolve()),
@@ -80,5 +111,25 @@ def run(args: argparse.Namespace) -> None:
             "protocol": {"sample_spacing": SAMPLE_SPACING, "voxels_per_axis": VOXELS_PER_AXIS,
                          "voxelized": not args.no_voxel},
             "metrics": metrics.to_dict(),
+            **report,
         })
     print(f"metrics written to {out}")
+
+
+def per_curve(pred: Path, run_folder: Path | None, scene, ground_truth, gt_points: np.ndarray,
+              world_to_gt: np.ndarray | None, voxelize: bool):
+    """The per-curve diagnosis of `pred` against the scene's ground truth: the views are the
+    run's (as it was trained: resolution, damaged views left out, its edge maps) where `pred`
+    belongs to a run, the scene's otherwise."""
+    from edgedog.curves.extract import run_scene
+    from edgedog.diagnosis import diagnose, ground_truth_curves
+
+    source = ground_truth_curves(ground_truth, scene.root)
+    if run_folder is not None:
+        views, detector = run_scene(run_folder)
+    else:
+        views, detector = scene, next(iter(scene.detectors), None)
+    curves = read_edges(pred)
+    if world_to_gt is not None:
+        curves = curves.transformed(world_to_gt)
+    return diagnose(curves, gt_points, source, views, detector, run_folder, voxelize)
