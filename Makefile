@@ -65,7 +65,7 @@ lint: $(VENV)/.deps-installed
 
 # docs/CLI.md from the command-line parsers (tests/test_cli_reference.py fails when it is stale).
 docs: $(VENV)/.ext-built
-	$(BIN)/python -m edgedog.cli_reference --out docs/CLI.md
+	$(BIN)/python -m edgedog.tools.cli_reference --out docs/CLI.md
 
 # The studio pictures in docs/, each from a scripted session on a virtual display.
 screenshots: setup

@@ -25,7 +25,7 @@ ACTIVE_FPS, TRAINING_FPS, IDLE_FPS = 30, 20, 2
 (the rate snapshots come at, see worker.PUBLISH_EVERY). With a software OpenGL a frame costs
 tens of milliseconds of CPU, much of it holding the GIL the training thread needs: idle frames
 are kept rare and interactive ones capped so that training keeps most of its speed, and input
-wakes the loop at once (python -m edgedog.app.benchmark measures both rates)."""
+wakes the loop at once (python -m edgedog.bench.studio measures both rates)."""
 BACKGROUND = (0.08, 0.08, 0.09, 1.0)
 
 

@@ -1,6 +1,7 @@
-"""Detector calibration (edgedog.edges.calibrate) and the map corrections (edgedog.edges.correct):
-known shifts, widths and silhouette sides are recovered, corrections undo them, records are
-keyed by weights, and the measured bias of the real ABC-NEF PiDiNet maps is reproduced."""
+"""Detector calibration (edgedog.bench.calibrate; its record, edgedog.edges.calibration) and the map
+corrections (edgedog.edges.correct): known shifts, widths and silhouette sides are recovered,
+corrections undo them, records are keyed by weights, and the measured bias of the real ABC-NEF
+PiDiNet maps is reproduced."""
 
 from __future__ import annotations
 
@@ -11,17 +12,19 @@ import numpy as np
 import pytest
 import torch
 
-from edgedog.cli import main
-from edgedog.edges.calibrate import (
-    DetectorCalibration,
+from edgedog.bench.calibrate import (
     ProjectedCurves,
     calibrate_detector,
-    calibration_path,
-    load_calibration,
     measure_offset,
     measure_scene_maps,
-    save_calibration,
     silhouette_sides,
+)
+from edgedog.cli import main
+from edgedog.edges.calibration import (
+    DetectorCalibration,
+    calibration_path,
+    load_calibration,
+    save_calibration,
 )
 from edgedog.edges.classical import CannyDetector
 from edgedog.edges.correct import blur_to_profile, gaussian_kernel, shift_edge_map, warp_target

@@ -6,8 +6,8 @@ import argparse
 import re
 from pathlib import Path
 
-from edgedog import cli_reference
 from edgedog.cli import build_parser
+from edgedog.tools import cli_reference
 
 REFERENCE = Path(__file__).resolve().parents[1] / cli_reference.REFERENCE_PATH
 OPTION = re.compile(r"(?<![\w-])--?[A-Za-z][\w-]*")

@@ -81,7 +81,7 @@ def test_an_aborted_start_leaves_no_folder_but_a_trained_one_stays(tmp_path):
 
 
 def test_the_benchmark_help_ends_with_a_sentence(capsys):
-    from edgedog.app.benchmark import main
+    from edgedog.bench.studio import main
 
     with pytest.raises(SystemExit):
         main(["--help"])

@@ -8,9 +8,10 @@ import argparse
 import json
 from pathlib import Path
 
+from edgedog.bench import calibrate
 from edgedog.commands.arguments import MAX_SIZE, bounded_integer
 from edgedog.commands.scene_args import add_scene_options, open_scene
-from edgedog.edges import calibrate
+from edgedog.edges.calibration import OffsetMeasurement, save_calibration
 from edgedog.edges.registry import WEIGHTS_HELP, detector_names
 from edgedog.errors import ConfigError
 from edgedog.train.config import MAX_SEED
@@ -65,7 +66,7 @@ def add_parser(subparsers) -> None:
     parser.set_defaults(run=run)
 
 
-def _measurement_lines(measurement: calibrate.OffsetMeasurement) -> list[str]:
+def _measurement_lines(measurement: OffsetMeasurement) -> list[str]:
     """Human summary of an `OffsetMeasurement`."""
     dx, dy = measurement.offset_px
     lines = [f"offset        dx {dx:+.2f} px, dy {dy:+.2f} px  (map ridge relative to the ground truth; "
@@ -118,7 +119,7 @@ def run(args: argparse.Namespace) -> None:
     detector = make_detector(args.detector, args.weights)
     calibration = calibrate.calibrate_detector(detector, args.shapes, args.views, args.sizes, args.seed,
                                                progress=True)
-    path = calibrate.save_calibration(calibration)
+    path = save_calibration(calibration)
     lines = [f"{calibration.detector} ({calibration.fingerprint}) on {', '.join(calibration.shapes)}, "
              f"{calibration.views} views at {', '.join(map(str, args.sizes))} px",
              *_measurement_lines(calibration.overall)]

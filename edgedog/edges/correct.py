@@ -1,4 +1,4 @@
-"""Corrections of a detector's measured bias (`edgedog.edges.calibrate`): pure functions.
+"""Corrections of a detector's measured bias (`edgedog.edges.calibration`): pure functions.
 
 Sign convention (the calibration's): a *shift* (dx, dy) moves the map's content by +dx px to
 the right and +dy px down. Shifting by a calibration's `correction` (minus its offset) puts

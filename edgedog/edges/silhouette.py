@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from edgedog.edges.calibrate import parabola_vertex
+from edgedog.edges.calibration import parabola_vertex
 
 SUBPIXEL = 4
 """Upsampling of the coverage before its distance transform: the contour to a quarter pixel."""

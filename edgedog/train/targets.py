@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from edgedog.edges.calibrate import load_calibration
+from edgedog.edges.calibration import load_calibration
 from edgedog.edges.correct import shift_edge_map, warp_target
 from edgedog.edges.registry import make_detector
 from edgedog.edges.silhouette import Outline, OutlinePull, distances_read, measure_silhouette_profile

@@ -1,6 +1,6 @@
 """docs/CLI.md, the command-line reference, generated from the argparse parsers of `edgedog.cli`.
 
-`python -m edgedog.cli_reference --out docs/CLI.md` writes it (`make docs`); `--check` exits 1 when
+`python -m edgedog.tools.cli_reference --out docs/CLI.md` writes it (`make docs`); `--check` exits 1 when
 the file differs from a fresh generation. The text is the same on every machine: the parser is built
 as for a user with no EDGEDOG_* variables and a placeholder home written `~` (help texts that name
 the user cache read `~/.cache/edgedog`), and usage lines are wrapped at a fixed width, not the
@@ -24,7 +24,7 @@ from edgedog.cli import build_parser
 REFERENCE_PATH = "docs/CLI.md"
 """Where the reference lives, relative to the repository root."""
 
-GENERATE_COMMAND = f"python -m edgedog.cli_reference --out {REFERENCE_PATH}"
+GENERATE_COMMAND = f"python -m edgedog.tools.cli_reference --out {REFERENCE_PATH}"
 
 USAGE_WIDTH = 100
 """Columns of the usage lines (argparse wraps them)."""
@@ -352,7 +352,7 @@ def reference() -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m edgedog.cli_reference",
+    parser = argparse.ArgumentParser(prog="python -m edgedog.tools.cli_reference",
                                      description="Write or check the command-line reference.")
     parser.add_argument("--out", type=Path, default=Path(REFERENCE_PATH),
                         help=f"the reference to write or check (default {REFERENCE_PATH})")

@@ -1,45 +1,39 @@
-"""Where a detector draws its edges, relative to the true ones: a calibration of its bias.
+"""Where a detector draws its edges, relative to the true ones: the measurement behind
+`edgedog calibrate-detector`.
 
-Learned detectors are biased: PiDiNet's maps of the ABC objects peak 0.5-1 px up and to the left
-of the projected ground-truth curves, and on silhouettes their bands lie mostly outside the
-object. Splats fitted to such maps inherit the bias. This module measures it, on built-in parts
-rendered with exact ground truth (`calibrate_detector`) or on a dataset's own maps
-(`measure_scene_maps`), and keeps one record per detector and weights (`save_calibration`,
-`load_calibration`). `edgedog.edges.correct` applies the correction.
-
-Sign convention, used everywhere: an *offset* is where the map's ridge lies relative to the
-projected ground truth, in pixels (x right, y down). The 2D offset (dx, dy) is the shift d that
-maximises the mean map value sampled at `gt + d`; an offset along a normal n is the position s
-of the peak of the mean profile `map(gt + s n)`. The *correction* is minus the offset: moving
-the map by it puts the ridge on the ground truth.
+It measures a detector's bias on built-in parts rendered with exact ground truth
+(`calibrate_detector`) or a dataset's own maps against its ground truth (`measure_scene_maps`);
+the record it makes, and the sign convention of its offsets, are `edgedog.edges.calibration`'s.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import re
 from collections.abc import Sequence
 from dataclasses import dataclass
 from datetime import datetime, timezone
-from pathlib import Path
 
 import numpy as np
 from scipy.spatial import cKDTree
 from tqdm import tqdm
 
 from edgedog.curve_files import EdgeCurves
+from edgedog.edges.calibration import (
+    PROFILE_OFFSETS,
+    DetectorCalibration,
+    EdgeProfile,
+    OffsetMeasurement,
+    OrientationOffset,
+    parabola_vertex,
+)
 from edgedog.edges.detector import EdgeDetector
 from edgedog.errors import ConfigError, InputError
-from edgedog.files import atomic_write_json, default_cache, read_json
 from edgedog.groundtruth import ground_truth_for
 from edgedog.scenes import Scene
 from edgedog.scenes.camera import Camera
 from edgedog.synthetic.cameras import orbit_cameras
 from edgedog.synthetic.shapes import Part, make_part
 
-PROFILE_STEP = 0.25
-PROFILE_OFFSETS = np.arange(-24, 25) * PROFILE_STEP
-"""(49,) px along the normal at which across-edge profiles are sampled: -6 .. 6."""
 SEARCH_RADIUS = 3.0  # px: the 2D offset is searched in [-3, 3]^2
 COARSE_STEP, FINE_STEP = 0.25, 0.05  # px: grid steps of the 2D search, then a parabolic fit
 COARSE_POINTS = 30_000  # enough to find the right coarse cell
@@ -48,9 +42,7 @@ MAX_POINTS = 200_000
 """Points the measurement keeps (a random subset beyond this): enough for 0.01-px precision."""
 SILHOUETTE_PROBES = (1.5, 3.0)
 """px from a curve point, on both sides, where the render is probed for background."""
-FWHM_PER_SIGMA = 2.0 * np.sqrt(2.0 * np.log(2.0))
 DEFAULT_SHAPES = ("box", "l-bracket", "plate-holes", "stepped-block", "chamfered-block", "boss")
-CALIBRATION_FOLDER = "calibration"
 
 
 # --- the measurement ---------------------------------------------------------------------------
@@ -110,12 +102,6 @@ class _Sampler:
         return top + fy * (bottom - top)
 
 
-def parabola_vertex(left: float, centre: float, right: float) -> float:
-    """Where the parabola through (-1, left), (0, centre), (1, right) peaks, in [-0.5, 0.5]."""
-    curvature = left - 2 * centre + right
-    return float(np.clip(0.5 * (left - right) / curvature, -0.5, 0.5)) if curvature < 0 else 0.0
-
-
 def _grid_peak(scores: np.ndarray) -> tuple[int, int, float, float]:
     """(rows, cols) scores -> argmax (row, col) and its parabolic refinement along each axis
     (fractions of a step; 0 on the grid's border)."""
@@ -141,81 +127,12 @@ def _best_shift(sample: _Sampler, points: np.ndarray, views: np.ndarray) -> tupl
     return float(dx), float(dy)
 
 
-@dataclass(frozen=True)
-class EdgeProfile:
-    """The mean across-edge profile of a set of curve points: the map sampled at
-    `point + s * normal` for s in PROFILE_OFFSETS and averaged over the points.
-
-    Attributes:
-        values: (49,) the mean map value at each of PROFILE_OFFSETS.
-        peak_px: where it peaks (parabolic fit), px along the normal: the offset.
-        width_px: its width as the standard deviation of a Gaussian with the same full width
-            at half maximum (above the profile's minimum), px.
-        asymmetry: (right - left) / (right + left) of the half widths at half maximum on the
-            +normal (right) and -normal (left) sides of the peak, in [-1, 1]; > 0 when the band
-            reaches further along +normal.
-    """
-
-    values: tuple[float, ...]
-    peak_px: float
-    width_px: float
-    asymmetry: float
-
-    @classmethod
-    def from_values(cls, values: np.ndarray) -> EdgeProfile:
-        """Peak, width and asymmetry of a (49,) profile sampled at PROFILE_OFFSETS."""
-        stored = tuple(round(float(v), 5) for v in values)
-        top = int(np.argmax(values))
-        if values[top] <= values.min():  # flat: no band at all
-            return cls(stored, float(PROFILE_OFFSETS[top]), 0.0, 0.0)
-        peak = PROFILE_OFFSETS[top]
-        if 0 < top < len(values) - 1:
-            peak += PROFILE_STEP * parabola_vertex(*values[top - 1:top + 2])
-        left, right = (_half_crossing(values, top, direction) for direction in (-1, 1))
-        asymmetry = ((right - peak) - (peak - left)) / (right - left)
-        return cls(stored, float(peak), float((right - left) / FWHM_PER_SIGMA), float(asymmetry))
-
-    @classmethod
-    def from_dict(cls, record: dict) -> EdgeProfile:
-        return cls(tuple(record["values"]), record["peak_px"], record["width_px"], record["asymmetry"])
-
-
-def _half_crossing(values: np.ndarray, top: int, direction: int) -> float:
-    """Where `values` (sampled at PROFILE_OFFSETS) first falls to half its height above its
-    minimum, walking from index `top` in `direction` (+1 or -1); linear interpolation, or the
-    window's end when it never does."""
-    half = (values[top] + values.min()) / 2
-    index = top
-    while 0 <= index + direction < len(values) and values[index + direction] > half:
-        index += direction
-    if not 0 <= index + direction < len(values):
-        return float(PROFILE_OFFSETS[index])
-    above, below = values[index], values[index + direction]
-    return float(PROFILE_OFFSETS[index] + direction * PROFILE_STEP * (above - half) / (above - below))
-
-
 def _profile_values(sample: _Sampler, points: np.ndarray, views: np.ndarray,
                     normals: np.ndarray) -> np.ndarray:
     """(49,) the mean across-edge profile of (N, 2) points of maps `views` (N,) along their
     (N, 2) unit normals, at PROFILE_OFFSETS."""
     along = points[None] + PROFILE_OFFSETS[:, None, None] * normals[None]  # (49, N, 2)
     return sample(along, views).mean(axis=1)
-
-
-@dataclass(frozen=True)
-class OrientationOffset:
-    """The offset of the curve points whose normal lies in one orientation bin.
-
-    Attributes:
-        angle_deg: the bin's centre: the direction of its normal n = (cos, sin) in the image
-            (x right, y down), in [0, 180); 0 = vertical edges, 90 = horizontal edges.
-        offset_px: the ridge's position along n (peak of the bin's mean profile).
-        points: how many points the bin holds.
-    """
-
-    angle_deg: float
-    offset_px: float
-    points: int
 
 
 def _orientation_profiles(sample: _Sampler, points: np.ndarray, views: np.ndarray, normals: np.ndarray,
@@ -240,50 +157,6 @@ def _orientation_profiles(sample: _Sampler, points: np.ndarray, views: np.ndarra
         centred.append(np.interp(PROFILE_OFFSETS + peak, PROFILE_OFFSETS, values))
     band = np.average(centred, axis=0, weights=[o.points for o in offsets])
     return tuple(offsets), EdgeProfile.from_values(band)
-
-
-@dataclass(frozen=True)
-class OffsetMeasurement:
-    """What `measure_offset` finds (sign convention: see the module's docstring).
-
-    Attributes:
-        offset_px: (dx, dy) the map's ridge relative to the projected ground truth.
-        orientations: the offset along the normal, per orientation bin.
-        profile: the band's own across-edge profile: each orientation bin's mean profile (along
-            the bin's direction) moved to peak at 0, averaged. Its width is the band's width.
-        silhouette: the mean profile of the silhouette points along their outward normals (its
-            peak is how far outside the object the band peaks), or None without any.
-        points: curve points measured.
-        silhouette_points: how many of them are silhouette points.
-    """
-
-    offset_px: tuple[float, float]
-    orientations: tuple[OrientationOffset, ...]
-    profile: EdgeProfile
-    silhouette: EdgeProfile | None
-    points: int
-    silhouette_points: int
-
-    @property
-    def correction(self) -> tuple[float, float]:
-        """(dx, dy) to move the map by (`correct.shift_edge_map`) to put its ridge on the truth."""
-        return -self.offset_px[0], -self.offset_px[1]
-
-    @property
-    def silhouette_offset_px(self) -> float | None:
-        """How far outside the object the band peaks on silhouettes (< 0: inside)."""
-        return None if self.silhouette is None else self.silhouette.peak_px
-
-    def to_dict(self) -> dict:
-        return dataclasses.asdict(self)
-
-    @classmethod
-    def from_dict(cls, record: dict) -> OffsetMeasurement:
-        silhouette = record["silhouette"]
-        return cls(tuple(record["offset_px"]), tuple(OrientationOffset(**o) for o in record["orientations"]),
-                   EdgeProfile.from_dict(record["profile"]),
-                   None if silhouette is None else EdgeProfile.from_dict(silhouette),
-                   record["points"], record["silhouette_points"])
 
 
 def measure_offset(edge_maps: Sequence[np.ndarray], projections: Sequence[ProjectedCurves],
@@ -395,67 +268,6 @@ def silhouette_sides(projected: ProjectedCurves, background: np.ndarray) -> Proj
     return dataclasses.replace(projected, outward=outward.astype(np.int8))
 
 
-# --- calibration on the built-in parts ---------------------------------------------------------
-
-@dataclass(frozen=True)
-class DetectorCalibration:
-    """A detector's measured bias, from built-in parts rendered with exact ground truth.
-
-    Attributes:
-        detector: its name.
-        fingerprint: its fingerprint (weights hash and settings): the record's key with the name.
-        overall: the measurement over every size.
-        per_size: image size (px) -> the measurement at that size.
-        shapes, views, seed: the parts (`make_part` names and seed) and orbit views per size.
-        date: when it was measured (ISO 8601, UTC).
-    """
-
-    detector: str
-    fingerprint: str
-    overall: OffsetMeasurement
-    per_size: dict[int, OffsetMeasurement]
-    shapes: tuple[str, ...]
-    views: int
-    seed: int
-    date: str
-
-    @property
-    def offset_px(self) -> tuple[float, float]:
-        return self.overall.offset_px
-
-    @property
-    def correction(self) -> tuple[float, float]:
-        return self.overall.correction
-
-    @property
-    def silhouette_offset_px(self) -> float | None:
-        return self.overall.silhouette_offset_px
-
-    @property
-    def profile_width_px(self) -> float:
-        return self.overall.profile.width_px
-
-    @property
-    def asymmetry(self) -> float | None:
-        """Outward asymmetry of the silhouette profile (> 0: the band reaches further outside)."""
-        return None if self.overall.silhouette is None else self.overall.silhouette.asymmetry
-
-    @property
-    def points(self) -> int:
-        return self.overall.points
-
-    def to_dict(self) -> dict:
-        record = dataclasses.asdict(self)
-        record["per_size"] = {str(size): m.to_dict() for size, m in self.per_size.items()}
-        return record
-
-    @classmethod
-    def from_dict(cls, record: dict) -> DetectorCalibration:
-        return cls(record["detector"], record["fingerprint"], OffsetMeasurement.from_dict(record["overall"]),
-                   {int(size): OffsetMeasurement.from_dict(m) for size, m in record["per_size"].items()},
-                   tuple(record["shapes"]), record["views"], record["seed"], record["date"])
-
-
 def _render_and_detect(detector: EdgeDetector, part: Part, cameras: list[Camera],
                        progress: tqdm) -> tuple[list[np.ndarray], list[ProjectedCurves]]:
     """The detector's maps of `part` seen by `cameras` and each view's visible curve points,
@@ -512,34 +324,6 @@ def calibrate_detector(detector: EdgeDetector, shapes: Sequence[str] = DEFAULT_S
     date = datetime.now(timezone.utc).isoformat(timespec="seconds")
     return DetectorCalibration(detector.name, detector.fingerprint, overall, per_size, tuple(shapes), views,
                                seed, date)
-
-
-# --- the record store --------------------------------------------------------------------------
-
-def calibration_path(detector: str, fingerprint: str) -> Path:
-    """`<user cache>/calibration/<detector>-<fingerprint>.json`, unsafe characters replaced."""
-    name = re.sub(r"[^A-Za-z0-9_.-]", "-", f"{detector}-{fingerprint}")
-    return default_cache() / CALIBRATION_FOLDER / f"{name}.json"
-
-
-def save_calibration(calibration: DetectorCalibration) -> Path:
-    """Write the record atomically; returns its path."""
-    path = calibration_path(calibration.detector, calibration.fingerprint)
-    return atomic_write_json(path, calibration.to_dict())
-
-
-def load_calibration(detector: EdgeDetector) -> DetectorCalibration | None:
-    """The record of this detector with these weights and settings, or None when there is none."""
-    path = calibration_path(detector.name, detector.fingerprint)
-    if not path.is_file():
-        return None
-    record = read_json(path)
-    try:
-        calibration = DetectorCalibration.from_dict(record)
-    except (KeyError, TypeError, ValueError) as exc:
-        raise InputError(path, f"not a detector calibration record ({type(exc).__name__}: {exc})") from None
-    same = (calibration.detector, calibration.fingerprint) == (detector.name, detector.fingerprint)
-    return calibration if same else None
 
 
 # --- a dataset's own maps ----------------------------------------------------------------------

@@ -1,7 +1,7 @@
 """How fluid the studio is while it trains: frames per second, training steps per second and the
 process's CPU use, with and without the user orbiting the 3D view.
 
-    python -m edgedog.app.benchmark SCENE [--seconds 8] [--size 1280x800] [--set KEY=VALUE ...]
+    python -m edgedog.bench.studio SCENE [--seconds 8] [--size 1280x800] [--set KEY=VALUE ...]
 
 Runs `edgedog studio SCENE` on the current display (e.g. under Xvfb: DISPLAY=:1) with a scripted
 session: start a run, let it train untouched, orbit the view continuously (one mouse move per
@@ -70,7 +70,7 @@ def measure(scene: Path, seconds: float, size: str, overrides: list[str]) -> dic
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m edgedog.app.benchmark",
+    parser = argparse.ArgumentParser(prog="python -m edgedog.bench.studio",
                                      description=" ".join(__doc__.split("\n\n")[0].split()))
     parser.add_argument("scene", type=Path)
     parser.add_argument("--seconds", type=float, default=8.0, help="length of each phase (default 8)")
