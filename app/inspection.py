@@ -7,6 +7,8 @@ weight w(U), exactly as `Trainer.step` computes them.
 
 from __future__ import annotations
 
+import dataclasses
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -15,11 +17,13 @@ from edgedog.app.colors import colormap, with_alpha
 from edgedog.app.state import WEIGHTING_FORMULAS
 from edgedog.renderer.config import RasterConfig
 from edgedog.renderer.primitives import Primitives, RasterCamera
-from edgedog.renderer.rasterize import rasterize
+from edgedog.renderer.rasterize import fisher_information, rasterize
 
 from edgedog.edges.cache import attach_edge_maps
 from edgedog.scenes import Scene
+from edgedog.scenes.camera import Camera
 from edgedog.train import losses
+from edgedog.train.view_opacity import camera_centres, largest_logits, seen_from
 
 NAMES = ("image", "edge map", "render", "depth", "U", "w")
 """The inspectors, in the order they are shown (w is labelled with its formula, e.g. w = exp(-U))."""
@@ -27,7 +31,8 @@ NAMES = ("image", "edge map", "render", "depth", "U", "w")
 
 @dataclass(frozen=True)
 class Inspector:
-    """One panel: `rgba` (H, W, 4) uint8; `cmap`, `lo`, `hi`: its colour bar (cmap None: no bar)."""
+    """One panel: `rgba` (H, W, 4) uint8; `cmap`, `lo`, `hi`: its colour bar (cmap None: no bar);
+    `values`: (H, W) the scalar map it shows (None: a colour image, read from `rgba`)."""
 
     name: str
     rgba: np.ndarray
@@ -35,6 +40,18 @@ class Inspector:
     lo: float = 0.0
     hi: float = 1.0
     note: str = ""
+    values: np.ndarray | None = None
+
+    @property
+    def slot(self) -> str:
+        """Its entry of NAMES (the name without w's formula)."""
+        return self.name.split(" = ")[0]
+
+    def readout(self, x: int, y: int) -> str:
+        """What pixel (x, y) holds: the map's value, or the image's R G B."""
+        if self.values is None:
+            return "RGB {} {} {}".format(*self.rgba[y, x, :3])
+        return f"value {float(self.values[y, x]):.4g}"
 
 
 def snapshot_primitives(snapshot) -> Primitives:
@@ -44,11 +61,48 @@ def snapshot_primitives(snapshot) -> Primitives:
                       colors=torch.ones(len(snapshot.means), 1))
 
 
+@dataclass(frozen=True)
+class FisherScores:
+    """The Fisher scores of one snapshot: its publication `key` (run, version), its `step`, and
+    (N,) `scores` (`fisher_scores`)."""
+
+    key: tuple[int, int]
+    step: int
+    scores: np.ndarray
+
+    def matching(self, run: int, count: int) -> np.ndarray | None:
+        """The scores, for a snapshot of run `run` with `count` primitives: those of the same run
+        and count (a snapshot taken since, with no density event in between), else None."""
+        return self.scores if self.key[0] == run and len(self.scores) == count else None
+
+
+def fisher_scores(snapshot, cameras: Sequence[Camera], raster: RasterConfig) -> np.ndarray:
+    """(N,) each primitive's Fisher information over the training `cameras`, the score the
+    primitive-level pruning ranks by (renderer.rasterize.fisher_information): low is uncertain.
+
+    With a view-dependent opacity every view sees its own opacities, as in the pruning; the
+    snapshot holds each primitive's largest, from which the base logit a is recovered.
+    """
+    if not len(snapshot.means):
+        return np.zeros(0, np.float32)
+    primitives = snapshot_primitives(snapshot)
+    views = [RasterCamera.from_camera(camera) for camera in cameras]
+    with torch.no_grad():
+        if snapshot.opacity_dirs is None:
+            return fisher_information(primitives, views, raster).numpy()
+        dirs = torch.tensor(np.asarray(snapshot.opacity_dirs, np.float32))
+        centres = camera_centres(views, torch.device("cpu"))
+        largest = largest_logits(torch.zeros(len(dirs)), dirs, primitives.means, centres)
+        base = dataclasses.replace(primitives, opacity_logits=primitives.opacity_logits - largest)
+        return sum(fisher_information(seen_from(base, dirs, centre), [view], raster)
+                   for view, centre in zip(views, centres)).numpy()
+
+
 def _scalar(name: str, values: np.ndarray, cmap: str, lo: float | None = None, hi: float | None = None,
             note: str = "") -> Inspector:
     lo = float(np.nanmin(values)) if lo is None else lo
     hi = float(np.nanmax(values)) if hi is None else hi
-    return Inspector(name, with_alpha(colormap(values, lo, hi, cmap)), cmap, lo, hi, note)
+    return Inspector(name, with_alpha(colormap(values, lo, hi, cmap)), cmap, lo, hi, note, values)
 
 
 def inspect_view(snapshot, scene: Scene, view: int, detector: str | None, raster: RasterConfig,

@@ -13,7 +13,15 @@ The script is JSON: {"report": "report.json", "actions": [...]}, each action one
     {"drag": "3D view", "by": [dx, dy]}     a left drag from the widget's centre, in points, over
                                             "frames" frames (default 8)
     {"key": "space"}, {"key": "ctrl+o"}     a key press (imgui.Key names, with ctrl+ or shift+)
-Clicks, drags and keys go through imgui's input queue, as the mouse and keyboard's do.
+    {"wheel": "inspector depth enlarged", "by": 2}   mouse-wheel notches over the widget's centre
+    {"click_curve": 3}                      a left click on the middle of shown curve 3 in the 3D view
+    {"expect_state": {"view.picked.curve.index": 3}, "timeout": 10}
+        as "expect", on dotted paths into the Studio (attributes, dict keys, list indices); a
+        value, or [op, value]
+    {"record": {"name": "view.picked.lines"}}  the values at dotted paths, into the report's marks
+    {"save_rects": "rects.json"}            the widgets' rectangles (points) as last drawn, for
+                                            tests that click with a real mouse
+Clicks, drags, wheels and keys go through imgui's input queue, as the mouse and keyboard's do.
 A failed expectation closes the window; the report (probes, failure, closing time) is written
 when the window closes and the command exits 1 if the script failed.
 """
@@ -27,6 +35,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from edgedog.app import widgets
+from edgedog.app.picking import pixel_point
 from imgui_bundle import imgui
 
 from edgedog.errors import InputError
@@ -38,6 +47,8 @@ FLOAT_TOLERANCE = 1e-6
 DRAG_STEPS = 8
 """Mouse moves a scripted drag is cut into."""
 MODIFIERS = {"ctrl": imgui.Key.mod_ctrl, "shift": imgui.Key.mod_shift}
+INPUT_ACTIONS = {"click", "drag", "key", "wheel", "click_curve"}
+"""Actions that send input events (one action a frame, its events over several)."""
 
 
 def matches(actual, expected) -> bool:
@@ -61,6 +72,22 @@ def assign(root, path: str, value) -> None:
         setattr(target, last, value)
     else:
         raise AttributeError(f"the UI state has no {path!r}")
+
+
+def lookup(root, path: str):
+    """The value at dotted `path` under `root`: attributes, dict keys and list indices; None where
+    a step finds None."""
+    value = root
+    for name in path.split("."):
+        if value is None:
+            return None
+        if isinstance(value, dict):
+            value = value[name]
+        elif isinstance(value, (list, tuple)) and name.lstrip("-").isdigit():
+            value = value[int(name)]
+        else:
+            value = getattr(value, name)
+    return value
 
 
 def _mouse_move(x: float, y: float) -> Callable[[], None]:
@@ -87,6 +114,25 @@ def drag(start: tuple[float, float], by: list[float], frames: int = DRAG_STEPS) 
     moves = [_mouse_move(start[0] + by[0] * step / frames, start[1] + by[1] * step / frames)
              for step in range(1, frames + 1)]
     return [_mouse_move(*start), _mouse_button(True), *moves, _mouse_button(False)]
+
+
+def wheel(x: float, y: float, notches: float) -> list[Callable[[], None]]:
+    """The frames of mouse-wheel `notches` (positive: away from the user) with the pointer at (x, y)."""
+    return [_mouse_move(x, y), lambda: imgui.get_io().add_mouse_wheel_event(0.0, notches)]
+
+
+def curve_point(studio, index: int) -> tuple[float, float]:
+    """Where on screen (points) the middle of shown curve `index` lies in the 3D view (ValueError
+    when it is not in sight)."""
+    view = studio.view
+    if not 0 <= index < view.curves_shown:
+        raise ValueError(f"no curve {index}: the 3D view shows {view.curves_shown}")
+    pixel = view.curve_pixel(index)
+    if pixel is None:
+        raise ValueError(f"curve {index} is not in sight")
+    x0, y0 = widgets.RECTS["3D view"][:2]
+    scale = imgui.get_io().display_framebuffer_scale
+    return pixel_point(pixel, (x0, y0), (scale.x, scale.y))
 
 
 def press(chord: str) -> list[Callable[[], None]]:
@@ -147,7 +193,7 @@ class ScriptDriver:
             self.log.append({"action": action, "at": round(self.clock() - self._origin, 3)})
             self.index += 1
             self._since = self.clock()
-            if action.keys() & {"request", "click", "drag", "key"}:
+            if action.keys() & {"request", *INPUT_ACTIONS}:
                 return  # one per frame: a screenshot shows the frame as it was asked for
 
     def _run(self, action: dict, studio) -> bool:
@@ -162,27 +208,38 @@ class ScriptDriver:
             args = {key: value for key, value in action.items() if key != "request"}
             studio.state.request(action["request"], **args)
             return True
-        if action.keys() & {"click", "drag", "key"}:
-            return self._send_input(action)
+        if action.keys() & INPUT_ACTIONS:
+            return self._send_input(action, studio)
         if "mark" in action:
             self.marks[action["mark"]] = {"at": self.clock() - self._origin, **studio.probe()}
             return True
-        if "expect" in action:
-            probe = studio.probe()
-            missed = {k: probe.get(k) for k, v in action["expect"].items() if not matches(probe.get(k), v)}
+        if "record" in action:
+            self.marks.update({name: lookup(studio, path) for name, path in action["record"].items()})
+            return True
+        if "save_rects" in action:
+            atomic_write_json(Path(action["save_rects"]), {k: list(v) for k, v in widgets.RECTS.items()})
+            return True
+        if "expect" in action or "expect_state" in action:
+            expected = action.get("expect") or action["expect_state"]
+            probe = studio.probe() if "expect" in action else {k: lookup(studio, k) for k in expected}
+            missed = {k: probe.get(k) for k, v in expected.items() if not matches(probe.get(k), v)}
             if missed and waited > action.get("timeout", DEFAULT_TIMEOUT):
-                self._fail(studio, f"action {self.index}: expected {action['expect']}, got {missed}")
+                self._fail(studio, f"action {self.index}: expected {expected}, got {missed}")
             return not missed
         raise ValueError("unknown action")
 
-    def _send_input(self, action: dict) -> bool:
+    def _send_input(self, action: dict, studio) -> bool:
         """Feed the action's next frame of input events; True once all are sent."""
         if not self._input:
             if "click" in action:
                 self._input = click(*widgets.center(action["click"]))
+            elif "click_curve" in action:
+                self._input = click(*curve_point(studio, action["click_curve"]))
             elif "drag" in action:
                 frames = action.get("frames", DRAG_STEPS)
                 self._input = drag(widgets.center(action["drag"]), action["by"], frames)
+            elif "wheel" in action:
+                self._input = wheel(*widgets.center(action["wheel"]), action["by"])
             else:
                 self._input = press(action["key"])
         self._input.pop(0)()

@@ -10,6 +10,8 @@ import typing
 from dataclasses import dataclass, field
 from typing import Any
 
+from edgedog.app.zoom import ImageZoom
+
 from edgedog.settings import with_values
 from edgedog.train.config import Kernel, TrainConfig, Weighting, with_epochs
 
@@ -18,9 +20,11 @@ WEIGHTING_FORMULAS = {"one": "1", "exp_neg": "exp(-U)", "one_minus": "1 - U", "u
 """How the UI names each weighting w(U) of the pixel uncertainty U (the paper's Table 4)."""
 EXPORT_FORMATS = ("ply", "obj", "json")
 KERNELS: tuple[str, ...] = typing.get_args(Kernel)
-COLOR_MODES = ("white", "opacity", "DoG a", "DoG t")
-"""What the splats are coloured by: nothing, their opacity, or the inner scale a or the
-surround ratio t of their DoG shape k."""
+FISHER = "Fisher U"
+COLOR_MODES = ("white", "opacity", "DoG a", "DoG t", FISHER)
+"""What the splats are coloured by: nothing, their opacity, the inner scale a or the surround
+ratio t of their DoG shape k, or log10 of their Fisher information (the per-primitive score the
+pruning ranks by: low is uncertain)."""
 
 
 @dataclass
@@ -101,6 +105,8 @@ class UIState:
     export_formats: dict[str, bool] = field(default_factory=lambda: dict.fromkeys(EXPORT_FORMATS, True))
     """The formats one click on Export writes (all from the same snapshot)."""
     show_help: bool = False
+    inspector: ImageZoom = field(default_factory=ImageZoom)
+    """The inspector enlarged to the whole panel, its zoom and the pixel readout."""
     status: str = ""
     """The status line: the last thing done (e.g. the path written)."""
     requests: list[Request] = field(default_factory=list)

@@ -5,12 +5,17 @@ primitives, drawn by the GL renderer into an offscreen target that the window sh
 per snapshot version); `render` re-draws the target only when the picture would change. While
 the camera moves the picture is drawn at a reduced resolution (with a software OpenGL, drawing
 costs CPU time the training thread needs), and at full resolution once it stops.
+
+`pick` finds the curve and the primitive under a click (app/picking.py) and highlights them;
+the primitives' Fisher scores (for the "Fisher U" colouring and a picked primitive's readout)
+are computed from the snapshot in a background job.
 """
 
 from __future__ import annotations
 
 import ctypes
 import ctypes.util
+import dataclasses
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -19,18 +24,32 @@ import moderngl
 import numpy as np
 import torch
 from edgedog.app.colors import colormap, curve_palette
-from edgedog.app.layers import visible_subset
-from edgedog.app.state import Display
+from edgedog.app.inspection import FisherScores, fisher_scores
+from edgedog.app.jobs import BackgroundJob
+from edgedog.app.layers import visible_members, visible_subset
+from edgedog.app.picking import (
+    CurvePick,
+    Pick,
+    PrimitivePick,
+    chain_segments,
+    curve_kind,
+    pick_points,
+    pick_segments,
+    to_camera,
+    to_pixels,
+)
+from edgedog.app.state import FISHER, Display
 from edgedog.app.worker import Published
 from edgedog.renderer.config import RasterConfig
 from edgedog.renderer.gl.camera import ViewCamera
 from edgedog.renderer.gl.lines import LineRenderer, frustum_segments, polyline_segments
 from edgedog.renderer.gl.splats import SplatRenderer
 from edgedog.renderer.gl.target import OffscreenTarget
-from edgedog.renderer.primitives import dog_shape
+from edgedog.renderer.primitives import RasterCamera, dog_shape
 
 from edgedog.curve_files import EdgeCurves, curve_polylines
 from edgedog.scenes.camera import Camera
+from edgedog.train.layers import layer_name
 
 FRUSTUM_DEPTH = 0.06
 """Frusta are drawn this deep, as a fraction of the extent of the camera centres."""
@@ -49,6 +68,14 @@ SETTLE_SECONDS = 0.25
 """The camera counts as moving this long after the last gesture."""
 CAMERA_COLOR, SELECTED_COLOR = (0.45, 0.5, 0.6), (1.0, 0.8, 0.2)
 GT_COLOR, PRUNED_COLOR = (0.2, 0.85, 0.35), (1.0, 0.15, 0.1)
+PICKED_COLOR, PICKED_POINT, PICKED_CURVE_POINTS = (1.0, 1.0, 1.0), 9.0, 4.0
+"""The picked curve (its vertices as points PICKED_CURVE_POINTS pixels wide) and the picked
+primitive's centre (a point PICKED_POINT pixels wide)."""
+LINE_LAYERS = ("curves", "cameras", "selected camera", "ground truth", "pruned", "picked curve", "picked")
+FISHER_EVERY = 2.0
+"""Seconds between two Fisher score computations while training (they share the CPU with it)."""
+FISHER_FLOOR = 1e-12
+"""Fisher scores are coloured by log10(max(U, FISHER_FLOOR)) (a primitive no view sees has 0)."""
 
 
 def looked_at(cameras: Sequence[Camera], fallback: np.ndarray) -> np.ndarray:
@@ -146,6 +173,19 @@ class View3D:
         self._splat_key = self._color_key = self._lines_key = None
         self._splat_subset = None
         self._curves: EdgeCurves | None = None
+        self._chains: list[np.ndarray] = []
+        """The shown curves as vertex chains (what is drawn and picked)."""
+        self._published: Published | None = None
+        self._members = np.zeros(0, np.int64)
+        """The snapshot indices of the primitives drawn."""
+        self._raster: RasterConfig | None = None
+        self.picked: Pick | None = None
+        """What the last click picked (highlighted), None before one."""
+        self.fisher: FisherScores | None = None
+        """The latest Fisher scores computed."""
+        self.fisher_error: str | None = None
+        """Why the last Fisher computation failed (None: it did not)."""
+        self._fisher_job, self._fisher_asked = BackgroundJob("fisher"), -np.inf
         self._uploads = 0
         self.renders = 0
         """How many times the target was drawn (it is only when the picture changes)."""
@@ -182,7 +222,7 @@ class View3D:
         size = float(np.linalg.norm(np.ptp([camera.center for camera in cameras], axis=0)))
         self._frusta = frustum_segments(cameras, FRUSTUM_DEPTH * size).reshape(len(cameras), -1, 2, 3)
         self._ground_truth = ground_truth
-        self._lines_key = None
+        self._lines_key = self.picked = self.fisher = None
         self.reset()
 
     def reset(self) -> None:
@@ -214,25 +254,68 @@ class View3D:
         show = published is not None and raster is not None and display.splats
         if show != self._show_splats:
             self._show_splats, self._dirty = show, True
+        self._published, self._raster = published, raster
+        self._sync_fisher(published, raster, display)
         if published is not None and raster is not None:
             self._sync_splats(published, raster, display)
         pruned = published.snapshot.pruned_positions if published is not None else None
+        if curves is not self._curves and self.picked is not None and self.picked.curve is not None:
+            self.picked = dataclasses.replace(self.picked, curve=None)  # its index named another curve
         key = (display.edges, display.cameras, display.ground_truth, display.pruned, view,
-               None if pruned is None else published.key)
+               None if pruned is None else published.key, self.picked)
         if key != self._lines_key or curves is not self._curves:
             self._lines_key, self._curves = key, curves
             self._set_lines(display, view, curves, pruned)
+
+    @staticmethod
+    def _count(published: Published) -> tuple[int, int]:
+        """(run, primitives) of a publication, what Fisher scores are matched by."""
+        return published.run, len(published.snapshot.means)
+
+    def _sync_fisher(self, published: Published | None, raster: RasterConfig | None, display: Display
+                     ) -> None:
+        """Take finished Fisher scores; compute those of the latest snapshot when the colouring or
+        a picked primitive needs them, at most every FISHER_EVERY seconds."""
+        done = self._fisher_job.poll()
+        if done is not None and done.error is not None:
+            self.fisher_error = done.error
+        elif done is not None:
+            self.fisher, self.fisher_error = done.value, None
+            self._color_key = None
+            primitive = None if self.picked is None else self.picked.primitive
+            if primitive is not None and primitive.fisher is None:
+                self.picked = dataclasses.replace(self.picked, primitive=primitive.scored(self.fisher))
+        if published is None or raster is None:
+            return
+        primitive = None if self.picked is None else self.picked.primitive
+        unscored = (primitive is not None and primitive.fisher is None
+                    and (primitive.key[0], primitive.count) == self._count(published))
+        if not (display.color_by == FISHER or unscored):
+            return
+        fresh = self.fisher is not None and self.fisher.key == published.key
+        now = time.monotonic()
+        if fresh or self._fisher_job.busy or now - self._fisher_asked < FISHER_EVERY:
+            return
+        snapshot, cameras = published.snapshot, self.cameras
+        self._fisher_job.submit(published.key, lambda: FisherScores(
+            published.key, snapshot.step, fisher_scores(snapshot, cameras, raster)))
+        self._fisher_asked = now
 
     def _sync_splats(self, published: Published, raster: RasterConfig, display: Display) -> None:
         shown = tuple(sorted(name for name, on in display.layers.items() if on))
         key = (published.key, raster, shown)
         if key != self._splat_key:
             self._splat_subset = visible_subset(published.snapshot, display.layers)
+            self._members = visible_members(published.snapshot, display.layers)
             self._uploads += 1
             self.splats.upload(self._splat_subset, self._uploads, raster)
             self._splat_key, self._color_key, self._dirty = key, None, True
         if (key, display.color_by) != self._color_key:
-            values = splat_values(self._splat_subset, display.color_by, raster)
+            if display.color_by == FISHER:
+                scores = None if self.fisher is None else self.fisher.matching(*self._count(published))
+                values = None if scores is None else np.log10(np.maximum(scores[self._members], FISHER_FLOOR))
+            else:
+                values = splat_values(self._splat_subset, display.color_by, raster)
             if values is None:
                 self.color_range = None
                 self.splats.set_colors(np.ones(self.splats.count))
@@ -244,13 +327,16 @@ class View3D:
 
     def _set_lines(self, display: Display, view: int, curves: EdgeCurves | None, pruned) -> None:
         """Rebuild every line layer (a few thousand vertices at most: cheaper than tracking each)."""
-        for name in ("curves", "cameras", "selected camera", "ground truth", "pruned"):
+        for name in LINE_LAYERS:
             self.lines.remove(name)
-        if display.edges and curves is not None and curves.num_curves:
-            chains = curve_polylines(curves)
-            counts = [max(len(chain) - 1, 0) for chain in chains]
-            colors = np.repeat(curve_palette(len(chains)), counts, axis=0)
-            self.lines.set_segments("curves", polyline_segments(chains), colors)
+        self._chains = curve_polylines(curves) if display.edges and curves is not None else []
+        if self._chains:
+            counts = [max(len(chain) - 1, 0) for chain in self._chains]
+            palette = curve_palette(len(self._chains))
+            if self.picked is not None and self.picked.curve is not None:
+                palette[self.picked.curve.index] = PICKED_COLOR
+            colors = np.repeat(palette, counts, axis=0)
+            self.lines.set_segments("curves", polyline_segments(self._chains), colors)
         if display.cameras and len(self._frusta):
             others = np.delete(self._frusta, view, axis=0) if 0 <= view < len(self._frusta) else self._frusta
             self.lines.set_segments("cameras", others, CAMERA_COLOR)
@@ -260,7 +346,67 @@ class View3D:
             self.lines.set_points("ground truth", self._ground_truth, GT_COLOR, 1.5)
         if display.pruned and pruned is not None and len(pruned):
             self.lines.set_points("pruned", pruned, PRUNED_COLOR, 2.5)
+        if self.picked is not None and self.picked.curve is not None and self._chains:
+            self.lines.set_points("picked curve", self._chains[self.picked.curve.index], PICKED_COLOR,
+                                  PICKED_CURVE_POINTS)
+        if self.picked is not None and self.picked.primitive is not None:
+            self.lines.set_points("picked", self.picked.primitive.position, PICKED_COLOR, PICKED_POINT)
         self._dirty = True
+
+    # --- picking
+    def pick(self, x: float, y: float) -> Pick:
+        """Pick the curve and the primitive nearest to view pixel (x, y) (centres at integers, row
+        0 at the top) among those drawn; they are highlighted until the next pick."""
+        camera, near = self.camera.camera(), RasterCamera.near
+        curve = primitive = None
+        segments, owners = chain_segments(self._chains)
+        hit = pick_segments(camera, segments, owners, (x, y), near)
+        if hit is not None:
+            chain = self._chains[hit.index]
+            length = float(np.linalg.norm(np.diff(chain, axis=0), axis=1).sum())
+            kind = curve_kind(hit.index, len(self._curves.lines), len(self._curves.beziers))
+            curve = CurvePick(hit.index, kind, length)
+        subset = self._splat_subset if self._show_splats else None
+        hit = None if subset is None else pick_points(camera, subset.means, (x, y), near)
+        if hit is not None:
+            primitive = self._primitive(hit.index)
+        self.picked = Pick((float(x), float(y)), curve, primitive)
+        self._lines_key = None
+        return self.picked
+
+    def curve_pixel(self, index: int) -> tuple[float, float] | None:
+        """The view pixel (x, y) of the middle (by length) of shown curve `index`, None when it
+        lies behind the camera or off the view."""
+        chain = self._chains[index]
+        lengths = np.linalg.norm(np.diff(chain, axis=0), axis=1)
+        ends = np.concatenate([[0.0], np.cumsum(lengths)])
+        middle = np.array([np.interp(ends[-1] / 2, ends, chain[:, axis]) for axis in range(3)])
+        camera = self.camera.camera()
+        local = to_camera(camera, middle)
+        if not local[2] > RasterCamera.near:
+            return None
+        x, y = to_pixels(camera, local)
+        inside = -0.5 <= x < camera.width - 0.5 and -0.5 <= y < camera.height - 0.5
+        return (float(x), float(y)) if inside else None
+
+    @property
+    def curves_shown(self) -> int:
+        """How many curves are drawn (and can be picked)."""
+        return len(self._chains)
+
+    def _primitive(self, shown: int) -> PrimitivePick:
+        """The readout of the `shown`-th primitive drawn."""
+        subset, published = self._splat_subset, self._published
+        index = int(self._members[shown])
+        layer = layer_name(0 if subset.layers is None else int(subset.layers[shown]))
+        k = np.asarray(subset.k_raw[shown], np.float32)
+        a, t = dog_shape(torch.tensor(k[None]), self._raster)
+        pick = PrimitivePick(index, published.snapshot.step, published.key, len(published.snapshot.means),
+                             layer, tuple(float(v) for v in subset.means[shown]),
+                             tuple(float(v) for v in sorted(subset.scales[shown], reverse=True)),
+                             float(subset.opacity[shown]), (float(k[0]), float(k[1])),
+                             (float(a[0]), float(t[0])))
+        return pick if self.fisher is None else pick.scored(self.fisher)
 
     # --- the camera
     def resize(self, width: int, height: int) -> None:
@@ -318,6 +464,7 @@ class View3D:
         self._canvases = {}
 
     def release(self) -> None:
+        self._fisher_job.wait(None)
         self.splats.release()
         self.lines.release()
         self._release_canvases()

@@ -1,20 +1,28 @@
-"""The 3D view panel: the View3D target as an image, orbited, panned and zoomed with the mouse."""
+"""The 3D view panel: the View3D target as an image, orbited, panned and zoomed with the mouse; a
+click (a press and release without a drag) picks the curve and the primitive under it."""
 
 from __future__ import annotations
 
 from edgedog.app import layout, widgets
+from edgedog.app.picking import panel_pixel
+from edgedog.app.state import FISHER
 from edgedog.app.textures import texture_ref
 from edgedog.app.view3d import View3D
 from imgui_bundle import imgui
 
 VIEW_BUTTONS = (imgui.ButtonFlags_.mouse_button_left | imgui.ButtonFlags_.mouse_button_right
                 | imgui.ButtonFlags_.mouse_button_middle)
-HELP = "drag: orbit   right/middle or shift drag: pan   wheel: zoom"
+HELP = "click: pick a curve or splat   drag: orbit   right/middle or shift drag: pan   wheel: zoom"
+CLICK_SLOP = 3.0
+"""A press and release with the mouse moved at most this many points between is a click."""
 
 
-def _mouse(view: View3D, scale: imgui.ImVec2) -> None:
-    """Gestures on the last item (the view's invisible button), in framebuffer pixels."""
+def _mouse(view: View3D, origin: imgui.ImVec2, scale: imgui.ImVec2, pressed: bool) -> None:
+    """Gestures on the last item (the view's invisible button), in framebuffer pixels; `pressed`:
+    the button was released over it this frame."""
     io = imgui.get_io()
+    if pressed and io.mouse_drag_max_distance_sqr[0] <= CLICK_SLOP ** 2:
+        view.pick(*panel_pixel((io.mouse_pos.x, io.mouse_pos.y), (origin.x, origin.y), (scale.x, scale.y)))
     if imgui.is_item_active():
         dx, dy = io.mouse_delta.x * scale.x, io.mouse_delta.y * scale.y
         if dx or dy:
@@ -37,9 +45,9 @@ def draw(studio, area: layout.Area) -> None:
             view.resize(round(size.x * scale.x), round(size.y * scale.y))
             origin = imgui.get_cursor_screen_pos()
             imgui.set_next_item_allow_overlap()  # the buttons drawn over the view get their clicks
-            imgui.invisible_button("##view3d", size, VIEW_BUTTONS)
+            pressed = imgui.invisible_button("##view3d", size, VIEW_BUTTONS)
             widgets.RECTS["3D view"] = (origin.x, origin.y, origin.x + size.x, origin.y + size.y)
-            _mouse(view, scale)
+            _mouse(view, origin, scale, pressed and imgui.is_mouse_released(imgui.MouseButton_.left))
             view.render()
             corner = imgui.ImVec2(origin.x + size.x, origin.y + size.y)
             # The target's row 0 is the bottom of the picture: flip it.
@@ -53,5 +61,21 @@ def draw(studio, area: layout.Area) -> None:
                               small=True):
                 studio.state.request("reset_view")
             imgui.text_disabled(HELP)
+            _readout(studio)
     imgui.end()
     imgui.pop_style_var()
+
+
+def _readout(studio) -> None:
+    """The picked curve and primitive, and the state of the Fisher colouring."""
+    view = studio.view
+    if studio.state.display.color_by == FISHER:
+        if view.fisher_error is not None:
+            imgui.text_colored(imgui.ImVec4(1.0, 0.4, 0.3, 1.0), f"Fisher scores: {view.fisher_error}")
+        elif view.color_range is None:
+            imgui.text_disabled("Fisher U: computing the scores...")
+        else:
+            imgui.text_disabled(f"Fisher U (log10, low: uncertain) at step {view.fisher.step}")
+    if view.picked is not None:
+        for line in view.picked.lines:
+            imgui.text(line)

@@ -16,8 +16,8 @@ CUT: set[str] = set()
 bottom: reached only by scrolling)."""
 
 
-def _noted(label: str, tip: str) -> None:
-    """Note the last item's rectangle under `label` and give it the tooltip `tip`."""
+def note(label: str, tip: str) -> None:
+    """Note the last item's rectangle under `label` and give it the tooltip `tip` (none when empty)."""
     low, high = imgui.get_item_rect_min(), imgui.get_item_rect_max()
     RECTS[label] = (low.x, low.y, high.x, high.y)
     top, bottom = imgui.get_window_pos().y, imgui.get_window_pos().y + imgui.get_window_size().y
@@ -29,44 +29,44 @@ def _noted(label: str, tip: str) -> None:
 
 def button(label: str, tip: str, small: bool = False) -> bool:
     clicked = imgui.small_button(label) if small else imgui.button(label)
-    _noted(label, tip)
+    note(label, tip)
     return clicked
 
 
 def checkbox(label: str, value: bool, tip: str) -> bool:
     value = imgui.checkbox(label, value)[1]
-    _noted(label, tip)
+    note(label, tip)
     return value
 
 
 def combo(label: str, value: str, items: Sequence[str], tip: str, names: Sequence[str] | None = None) -> str:
     """A combo box over `items` (shown as `names`, default the items) that returns the chosen item."""
     index = imgui.combo(label, list(items).index(value), list(names or items))[1]
-    _noted(label, tip)
+    note(label, tip)
     return items[index]
 
 
 def slider_float(label: str, value: float, low: float, high: float, tip: str, fmt: str = "%.2f") -> float:
     value = imgui.slider_float(label, value, low, high, fmt)[1]
-    _noted(label, tip)
+    note(label, tip)
     return value
 
 
 def slider_int(label: str, value: int, low: int, high: int, tip: str) -> int:
     value = imgui.slider_int(label, value, low, high)[1]
-    _noted(label, tip)
+    note(label, tip)
     return value
 
 
 def input_int(label: str, value: int, tip: str, step: int = 1, fast: int = 10) -> int:
     value = imgui.input_int(label, value, step, fast)[1]
-    _noted(label, tip)
+    note(label, tip)
     return value
 
 
 def input_float2(label: str, value: Sequence[float], tip: str, fmt: str = "%.2f") -> tuple[float, float]:
     value = imgui.input_float2(label, list(value), fmt)[1]
-    _noted(label, tip)
+    note(label, tip)
     return tuple(value)
 
 
