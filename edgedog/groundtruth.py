@@ -169,8 +169,10 @@ def sharp_polylines(vertices: np.ndarray, features: Path, obj: Path) -> list[np.
     return polylines
 
 
+@functools.lru_cache(maxsize=4)
 def _feature_curves(features: Path) -> list:
-    """The `curves` list of an ABC features file."""
+    """The `curves` list of an ABC features file, parsed once per process (seconds for a large
+    file); callers must not change it."""
     document = read_yaml(features)  # bounded: a deeply nested file crashed the C parser
     if not isinstance(document, dict) or "curves" not in document:
         raise InputError(features, "not an ABC features file (no 'curves')")
@@ -222,12 +224,13 @@ class GroundTruthCurve:
         return float(np.linalg.norm(np.diff(self.polyline, axis=0), axis=1).sum())
 
 
+@functools.lru_cache(maxsize=4)
 def abc_curves(source: GroundTruthSource) -> list[GroundTruthCurve] | None:
     """The sharp curves of an ABC object with their identity, or None when `source` has no
     features file. With the mesh (`source.obj`): the polylines through its vertices and each
     curve's dihedral sign from the two triangles along it (`mesh_dihedral`). Without it: lines
     and circles from the file's own parameters (`analytic_polyline`; other types are left
-    out), dihedral unknown."""
+    out), dihedral unknown. Built once per source: callers must not change the list."""
     if source.features is None or source.stats is None:
         return None
     curves = _sharp_curves(_feature_curves(source.features), source.features)
@@ -236,7 +239,7 @@ def abc_curves(source: GroundTruthSource) -> list[GroundTruthCurve] | None:
         vertices, faces = read_obj_vertices(source.obj), read_obj_faces(source.obj)
         corners = [_indices(curve, number, len(vertices), source.features, source.obj)
                    for number, curve in curves]
-        dihedrals = [mesh_dihedral(vertices, faces, indices) for indices in corners]
+        dihedrals = mesh_dihedrals(vertices, faces, corners)
         polylines = [vertices[indices] for indices in corners]
     else:
         polylines = [analytic_polyline(curve) for _, curve in curves]
@@ -285,21 +288,29 @@ def read_obj_faces(path: Path) -> np.ndarray:
     return np.array(triangles, dtype=np.int64).reshape(-1, 3)
 
 
-def mesh_dihedral(vertices: np.ndarray, faces: np.ndarray, indices: np.ndarray) -> str:
-    """The dihedral sign along a curve through mesh vertices: "convex" where, across the mesh
+def mesh_dihedrals(vertices: np.ndarray, faces: np.ndarray, curves: list[np.ndarray]) -> list[str]:
+    """The dihedral sign along each curve through mesh vertices: "convex" where, across the mesh
     edges it follows, one triangle runs against the other's outward normal (counter-clockwise
     corners seen from outside), "concave" where it runs along it; the majority of the curve's
     segments decides, "unknown" where no segment has exactly two triangles.
 
     Args:
-        vertices: (V, 3) mesh vertices; faces: (T, 3) their triangles; indices: (M,) the curve's
-            vertices in order.
+        vertices: (V, 3) mesh vertices; faces: (T, 3) their triangles; curves: (M_i,) each
+            curve's vertices in order.
     """
     count = len(vertices)
     pairs = np.sort(np.stack([faces, np.roll(faces, -1, axis=1)], axis=2).reshape(-1, 2), axis=1)
     keys = pairs[:, 0] * count + pairs[:, 1]
     order = np.argsort(keys, kind="stable")
     sorted_keys = keys[order]
+    return [_dihedral(vertices, faces, indices, order, sorted_keys) for indices in curves]
+
+
+def _dihedral(vertices: np.ndarray, faces: np.ndarray, indices: np.ndarray, order: np.ndarray,
+              sorted_keys: np.ndarray) -> str:
+    """One curve's sign (`mesh_dihedrals`); `sorted_keys` (3T,) are the triangles' edges as
+    lower * V + upper vertex index, sorted by `order` (3T,) (edge k of triangle k // 3)."""
+    count = len(vertices)
     votes = 0
     for a, b in zip(indices[:-1], indices[1:]):
         key = min(a, b) * count + max(a, b)
