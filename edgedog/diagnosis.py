@@ -13,7 +13,8 @@ Where a missed curve (recall at 10 mm under MISSED_RECALL) was lost, the first o
 occluded (seen by fewer than MIN_VIEWS views: needs the part's mesh, rendered offscreen), not
 drawn (mean edge value along its projection in the views that see it under MIN_DRAWN), no
 primitive formed (under half of its points have a primitive centre of primitives.ply within
-NEAR; whether pruned ones were there is not recorded by a run), dropped at extraction (under half
+NEAR; and whether the last Fisher pruning, the one a run's checkpoint records, removed primitives
+on it, or it was never reached), dropped at extraction (under half
 have a point of edge_points.ply within NEAR: the filter that removed most of the primitives near
 it, re-applied), or dropped at curve fitting (edge points near it, no curve).
 
@@ -27,6 +28,7 @@ MAX_FALSE false curves are reported (the longest).
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from collections import Counter
 from dataclasses import asdict, dataclass, field
@@ -73,6 +75,8 @@ ASSIGN_DISTANCE = 0.002
 SURFACE_STEP = 0.004
 """Spacing of the points sampled on the mesh's surface to place false curves (4 mm)."""
 MAX_SURFACE_POINTS = 400_000
+WEDGE_MARGIN = 0.05
+"""Difference of mean edge values between the two sides of a curve's faces that signs it."""
 CURVED_DEG = 2.0
 """Triangles whose corner normals differ by more than this tessellate a curved face."""
 
@@ -103,6 +107,7 @@ class CurveReport:
     primitive_cover: float | None = None
     edge_point_mm: float | None = None
     edge_point_cover: float | None = None
+    pruned_near: int | None = None
     missed: bool = False
     cause: str = ""
 
@@ -275,12 +280,16 @@ def assign_points(gt_points: np.ndarray, curves: list[GroundTruthCurve]) -> np.n
 @dataclass
 class ViewEvidence:
     """Per curve (C,): views that see it (None without a mesh), views that draw it, views where it
-    is an outline, and its mean edge value over the views that see it."""
+    is an outline, its mean edge value over the views that see it, and for a curve with a
+    `wedge`, its mean edge value in the views looking into the wedge and in the others (NaN
+    where no view does)."""
 
     seeing: np.ndarray | None
     drawn_views: np.ndarray
     outline_views: np.ndarray
     drawn: np.ndarray
+    into_wedge: np.ndarray
+    outside_wedge: np.ndarray
 
 
 def probes(curve: GroundTruthCurve) -> tuple[np.ndarray, np.ndarray]:
@@ -301,6 +310,7 @@ def view_evidence(curves: list[GroundTruthCurve], mesh, scene, detector: str | N
     is the largest of the 3x3 pixels at each point (the maps' sub-pixel bias); an outline in a
     view where, beside most of its visible points, one side is background."""
     gt_to_world = np.linalg.inv(scene.world_to_gt)
+    wedge_sums = np.zeros((len(curves), 2, 2))  # [curve, into / outside, sum / views]
     points, tangents = zip(*(probes(c) for c in curves))
     points = np.concatenate(points) @ gt_to_world[:3, :3].T + gt_to_world[:3, 3]
     tangents = np.concatenate(tangents) @ gt_to_world[:3, :3].T
@@ -328,14 +338,35 @@ def view_evidence(curves: list[GroundTruthCurve], mesh, scene, detector: str | N
                 drawn_sum += np.where(in_view, value, 0.0)
                 drawn_views += in_view & (value >= DRAWN_VIEW)
                 counted = in_view if render is not None else in_view & (value >= DRAWN_VIEW)
+                into = _looks_into_wedge(curves, scene.world_to_gt @ np.r_[camera.center, 1.0])
+                for side, chosen in ((0, into & in_view), (1, ~into & in_view)):
+                    wedge_sums[:, side] += np.stack([np.where(chosen, value, 0.0), chosen], axis=1)
             if background is not None:
                 beside = _beside_background(points, tangents, camera, background) & seen
                 outline_views += counted & (np.bincount(owner, beside, count) >= 0.5 * seen_count)
     finally:
         for renderer in renderers.values():
             renderer.release()
+    with np.errstate(invalid="ignore", divide="ignore"):
+        wedge_means = wedge_sums[..., 0] / wedge_sums[..., 1]
     return ViewEvidence(seeing if mesh is not None else None, drawn_views, outline_views,
-                        drawn_sum / np.maximum(seeing, 1))
+                        drawn_sum / np.maximum(seeing, 1), wedge_means[:, 0], wedge_means[:, 1])
+
+
+def _looks_into_wedge(curves: list[GroundTruthCurve], centre: np.ndarray) -> np.ndarray:
+    """(C,) whether a camera at `centre` (4,) homogeneous, ground-truth frame, looks at each
+    curve's middle from inside its `wedge` (across the curve, between the two directions into its
+    faces); False for curves without one."""
+    result = np.zeros(len(curves), bool)
+    for i, curve in enumerate(curves):
+        if curve.wedge is None:
+            continue
+        middle, tangent = (values[PROBES // 2] for values in probes(curve))
+        view = centre[:3] / centre[3] - middle
+        view -= tangent * (view @ tangent)
+        (a, b), *_ = np.linalg.lstsq(curve.wedge.T, view, rcond=None)
+        result[i] = a > 0 and b > 0
+    return result
 
 
 def _render(renderers: dict, mesh, gt_to_world: np.ndarray, camera):
@@ -405,13 +436,15 @@ def _beside_background(points: np.ndarray, tangents: np.ndarray, camera,
 class RunStages:
     """A run folder's intermediate results in the ground-truth frame: primitive centres (P, 3)
     with the primitives themselves (for re-applying the filters), edge points (E, 3) or None,
-    the extraction settings and the number of Fisher prunings recorded."""
+    the extraction settings, the number of Fisher prunings logged and (M, 3) the centres the
+    last one removed (the run's checkpoint keeps those only; None without a checkpoint)."""
 
     centres: np.ndarray
     primitives: object
     edge_points: np.ndarray | None
     extract_config: dict
     prunings: int
+    pruned: np.ndarray | None
 
 
 def run_stages(run: Path, world_to_gt: np.ndarray) -> RunStages | None:
@@ -433,7 +466,20 @@ def run_stages(run: Path, world_to_gt: np.ndarray) -> RunStages | None:
         prunings = sum(1 for e in events if isinstance(e, dict) and e.get("event") == "fisher_prune")
     except (OSError, UnicodeDecodeError, ValueError, AttributeError):
         pass
-    return RunStages(to_gt(primitives.points), primitives, edge_points, config, prunings)
+    return RunStages(to_gt(primitives.points), primitives, edge_points, config, prunings,
+                     _last_pruned(run, to_gt))
+
+
+def _last_pruned(run: Path, to_gt) -> np.ndarray | None:
+    """(M, 3) ground-truth-frame centres removed by the run's last Fisher pruning, from its
+    checkpoint; None without a readable one."""
+    from edgedog.train.checkpoint import read_checkpoint
+
+    try:
+        positions = read_checkpoint(run / "checkpoint.pt")["pruned_positions"]
+    except InputError:
+        return None
+    return to_gt(np.asarray(positions, dtype=np.float64).reshape(-1, 3))
 
 
 def filter_losses(indices: np.ndarray, stages: RunStages, scene, detector: str | None) -> np.ndarray:
@@ -489,12 +535,15 @@ def diagnose(prediction: EdgeCurves, gt_points: np.ndarray, source: CurveSource,
     if (owner < 0).any():
         notes.append(f"{int((owner < 0).sum())} ground-truth points lie on no identified curve (in no row)")
     evidence = view_evidence(curves, source.mesh, scene, detector)
+    curves = _dihedrals_from_maps(curves, evidence, notes)
     stages = run_stages(run, scene.world_to_gt) if run is not None else None
     if run is None:
         notes.append("no run folder: the stages after the maps are not examined")
     elif stages is None:
         notes.append(f"{run} has no primitives.ply: the stages after the maps are not examined")
     primitive_tree = cKDTree(stages.centres) if stages is not None and len(stages.centres) else None
+    pruned_tree = (cKDTree(stages.pruned) if stages is not None and stages.pruned is not None
+                   and len(stages.pruned) else None)
     edge_tree = (cKDTree(stages.edge_points) if stages is not None and stages.edge_points is not None
                  and len(stages.edge_points) else None)
     reports = []
@@ -511,6 +560,8 @@ def diagnose(prediction: EdgeCurves, gt_points: np.ndarray, source: CurveSource,
             report.primitive_mm, report.primitive_cover = _closeness(primitive_tree, own)
         if edge_tree is not None and len(own):
             report.edge_point_mm, report.edge_point_cover = _closeness(edge_tree, own)
+        if pruned_tree is not None and len(own):
+            report.pruned_near = int(len(set().union(*pruned_tree.query_ball_point(own, NEAR))))
         report.missed = recall[10] < MISSED_RECALL
         report.cause = _cause(report, stages) if report.missed else ""
         reports.append(report)
@@ -519,6 +570,27 @@ def diagnose(prediction: EdgeCurves, gt_points: np.ndarray, source: CurveSource,
     false_curves, false_count = _false_curves(prediction, gt_points, source.mesh, scene)
     return Diagnosis(reports, false_curves, false_count, _aggregate(reports, distance, owner, "kind"),
                      _aggregate(reports, distance, owner, "type"), notes)
+
+
+def _dihedrals_from_maps(curves: list[GroundTruthCurve], evidence: ViewEvidence,
+                        notes: list[str]) -> list[GroundTruthCurve]:
+    """Curves of unknown dihedral whose faces are known (`wedge`), signed by the maps: a concave
+    edge can be seen only from inside the wedge of air between its faces, a convex one only from
+    outside the wedge of material, so the side whose views draw it more (by WEDGE_MARGIN) says
+    which."""
+    signed = []
+    result = []
+    for i, curve in enumerate(curves):
+        into, outside = evidence.into_wedge[i], evidence.outside_wedge[i]
+        known = curve.dihedral != "unknown" or curve.wedge is None
+        if not known and abs(np.nan_to_num(into - outside)) > WEDGE_MARGIN:
+            curve = dataclasses.replace(curve, dihedral="concave" if into > outside else "convex")
+            signed.append(curve.id)
+        result.append(curve)
+    if signed:
+        notes.append(f"dihedral signs of {len(signed)} curves from the maps (mean edge value in the views "
+                     "looking into the wedge between their faces against the others)")
+    return result
 
 
 def _closeness(tree: cKDTree, points: np.ndarray) -> tuple[float, float]:
@@ -545,8 +617,17 @@ def _cause(report: CurveReport, stages: RunStages | None) -> str:
     if stages is None:
         return "drawn; the run's stages are not available"
     if not report.primitive_cover or report.primitive_cover < MISSED_RECALL:
-        pruned = (f"pruned by Fisher or never reached: not recorded ({stages.prunings} prunings logged)"
-                  if stages.prunings else "no Fisher pruning logged: never reached")
+        logged = f"{stages.prunings} Fisher prunings logged"
+        if not stages.prunings:
+            pruned = "never reached (no Fisher pruning logged)"
+        elif stages.pruned is None:
+            pruned = f"pruned by Fisher or never reached: not recorded ({logged})"
+        elif report.pruned_near:
+            pruned = (f"pruned by Fisher: {report.pruned_near} of the last pruning's {len(stages.pruned)} "
+                      f"primitives lay on it ({logged}, only the last recorded)")
+        else:
+            pruned = (f"none of the last Fisher pruning's {len(stages.pruned)} primitives lay on it: never "
+                      f"reached or pruned earlier ({logged}, only the last recorded)")
         return (f"no primitive formed (within 10 mm of {report.primitive_cover or 0:.0f}% of it, median "
                 f"{report.primitive_mm} mm); {pruned}")
     if not report.edge_point_cover or report.edge_point_cover < MISSED_RECALL:

@@ -170,15 +170,20 @@ def sharp_polylines(vertices: np.ndarray, features: Path, obj: Path) -> list[np.
 
 
 @functools.lru_cache(maxsize=4)
-def _feature_curves(features: Path) -> list:
-    """The `curves` list of an ABC features file, parsed once per process (seconds for a large
-    file); callers must not change it."""
+def _features_document(features: Path) -> dict:
+    """An ABC features file, parsed once per process (seconds for a large file); callers must
+    not change it."""
     document = read_yaml(features)  # bounded: a deeply nested file crashed the C parser
     if not isinstance(document, dict) or "curves" not in document:
         raise InputError(features, "not an ABC features file (no 'curves')")
     if not isinstance(document["curves"], list):
         raise InputError(features, "'curves' is not a list")
-    return document["curves"]
+    return document
+
+
+def _feature_curves(features: Path) -> list:
+    """The `curves` list of an ABC features file."""
+    return _features_document(features)["curves"]
 
 
 def _sharp_curves(curves: list, features: Path) -> list[tuple[int, dict]]:
@@ -212,12 +217,16 @@ class GroundTruthCurve:
             wedge under or over 180 degrees), or unknown.
         polyline: (M, 3) vertices along it, no farther apart than the protocol's spacing where
             the curve is not straight.
+        wedge: where the dihedral is unknown but the two faces along the curve are, (2, 3) unit
+            directions into each face across the curve at its middle (perpendicular to it):
+            the material fills the wedge between them (convex) or the rest (concave).
     """
 
     id: int
     type: str
     dihedral: str
     polyline: np.ndarray
+    wedge: np.ndarray | None = None
 
     @property
     def length(self) -> float:
@@ -230,7 +239,8 @@ def abc_curves(source: GroundTruthSource) -> list[GroundTruthCurve] | None:
     features file. With the mesh (`source.obj`): the polylines through its vertices and each
     curve's dihedral sign from the two triangles along it (`mesh_dihedral`). Without it: lines
     and circles from the file's own parameters (`analytic_polyline`; other types are left
-    out), dihedral unknown. Built once per source: callers must not change the list."""
+    out), dihedral unknown, with the wedge of the faces along it (`face_wedges`). Built once
+    per source: callers must not change the list."""
     if source.features is None or source.stats is None:
         return None
     curves = _sharp_curves(_feature_curves(source.features), source.features)
@@ -241,12 +251,76 @@ def abc_curves(source: GroundTruthSource) -> list[GroundTruthCurve] | None:
                    for number, curve in curves]
         dihedrals = mesh_dihedrals(vertices, faces, corners)
         polylines = [vertices[indices] for indices in corners]
+        wedges = [None] * len(curves)
     else:
         polylines = [analytic_polyline(curve) for _, curve in curves]
         dihedrals = ["unknown"] * len(curves)
+        wedges = face_wedges(_features_document(source.features), curves, polylines)
     return [GroundTruthCurve(number, CURVE_TYPES.get(curve.get("type"), "other"), dihedral,
-                             line * scale + offset)
-            for (number, curve), line, dihedral in zip(curves, polylines, dihedrals) if line is not None]
+                             line * scale + offset, wedge)
+            for (number, curve), line, dihedral, wedge in zip(curves, polylines, dihedrals, wedges)
+            if line is not None]
+
+
+def face_wedges(document: dict, curves: list[tuple[int, dict]],
+                polylines: list[np.ndarray | None]) -> list[np.ndarray | None]:
+    """For each sharp curve (raw (M, 3) `polylines`, None where unknown), (2, 3) unit directions
+    into the two surfaces of the features file that hold two or more of its vertices, at its
+    middle, or None. A plane's normal is its `z_axis`, a cylinder's the radial direction from
+    its axis; the direction into a face is normal x tangent, turned towards the face's vertices
+    nearest the curve across its middle (of those that any line or circle of the file places)."""
+    placed: dict[int, np.ndarray] = {}
+    for curve in document["curves"]:
+        line = analytic_polyline(curve) if isinstance(curve, dict) else None
+        if line is not None:
+            placed.update(zip(np.asarray(curve["vert_indices"]).reshape(-1).tolist(), line))
+    surfaces = [s for s in document.get("surfaces") or [] if isinstance(s, dict)]
+    members = [set(np.asarray(s.get("vert_indices", []), dtype=np.int64).reshape(-1).tolist())
+               for s in surfaces]
+    result: list[np.ndarray | None] = []
+    for (_, curve), line in zip(curves, polylines):
+        own = set(np.asarray(curve.get("vert_indices", []), dtype=np.int64).reshape(-1).tolist())
+        faces = [k for k, m in enumerate(members) if len(own & m) >= 2]
+        if line is None or len(faces) != 2:
+            result.append(None)
+            continue
+        middle = len(line) // 2
+        point, tangent = line[middle], line[min(middle + 1, len(line) - 1)] - line[max(middle - 1, 0)]
+        tangent = tangent / np.linalg.norm(tangent)
+        reach = 0.25 * float(np.linalg.norm(line[-1] - line[0]))
+        directions = [_into_face(surfaces[k], members[k] - own, placed, point, tangent, reach) for k in faces]
+        result.append(None if any(d is None for d in directions) else np.stack(directions))
+    return result
+
+
+def _into_face(surface: dict, vertices: set[int], placed: dict[int, np.ndarray], point: np.ndarray,
+               tangent: np.ndarray, reach: float) -> np.ndarray | None:
+    """(3,) unit direction into `surface` across a curve at `point` (3,) with unit `tangent`,
+    judged by the face's vertices within `reach` of the plane across the curve there (all of
+    them where none is), or None (an unknown surface type, no placed vertex of the face)."""
+    try:
+        axis = np.asarray(surface["z_axis"], dtype=np.float64).reshape(3)
+        if surface.get("type") == "Cylinder":
+            radial = point - np.asarray(surface["location"], dtype=np.float64).reshape(3)
+            axis = radial - axis * (radial @ axis)
+        elif surface.get("type") != "Plane":
+            return None
+    except (KeyError, TypeError, ValueError):
+        return None
+    across = np.cross(axis, tangent)
+    norm = np.linalg.norm(across)
+    known = np.array([placed[v] for v in vertices if v in placed]).reshape(-1, 3)
+    offsets = known - point
+    along = np.abs(offsets @ tangent)
+    offsets -= np.outer(offsets @ tangent, tangent)  # across the curve only
+    apart = np.linalg.norm(offsets, axis=1) > 1e-9
+    if not norm > 1e-12 or not apart.any():
+        return None
+    # The vertices in a slab across the curve's middle: beside a curved edge, those nearest it
+    # along the face's other edges can lie on the far side of its chord.
+    slab = apart & (along <= reach) if (apart & (along <= reach)).any() else apart
+    nearest = offsets[slab][np.argsort(np.linalg.norm(offsets[slab], axis=1))[:8]]
+    return across / norm * (1.0 if np.sum(np.sign(nearest @ across)) >= 0 else -1.0)
 
 
 def analytic_polyline(curve: dict) -> np.ndarray | None:

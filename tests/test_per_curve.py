@@ -139,3 +139,7 @@ def test_abc_curves_from_the_mesh_and_from_the_features_file_alone(abc_nef_scene
     points = read_points_ply(emap.sampled_ply)
     owner = assign_points(points, curves)
     assert (owner >= 0).all() and len(np.unique(owner)) == 33
+    for curve in curves:  # the two faces along each curve, for signing it from the maps
+        tangent = curve.polyline[len(curve.polyline) // 2 + 1] - curve.polyline[len(curve.polyline) // 2 - 1]
+        assert curve.wedge.shape == (2, 3) and np.allclose(np.linalg.norm(curve.wedge, axis=1), 1)
+        assert np.allclose(curve.wedge @ tangent, 0, atol=1e-6)
