@@ -146,11 +146,12 @@ class Diagnosis:
         def number(value, fmt):
             return "-" if value is None else format(value, fmt)
         rows = [f"{'id':>4} {'type':<8} {'kind':<8} {'len mm':>7} {'R5':>6} {'R10':>6} {'R20':>6} "
-                f"{'seen':>5} {'drawn':>5} {'prim':>6}  cause"]
+                f"{'seen':>5} {'drew':>5} {'drawn':>5} {'prim':>6}  cause"]
         for c in self.curves:
             rows.append(f"{c.id:>4} {c.type:<8} {c.kind:<8} {c.length_mm:7.0f} {c.recall[5]:6.1f} "
                         f"{c.recall[10]:6.1f} {c.recall[20]:6.1f} {number(c.views_seeing, 'd'):>5} "
-                        f"{number(c.drawn, '.2f'):>5} {number(c.primitive_mm, '.1f'):>6}  {c.cause}")
+                        f"{number(c.views_drawn, 'd'):>5} {number(c.drawn, '.2f'):>5} "
+                        f"{number(c.primitive_mm, '.1f'):>6}  {c.cause}")
         for title, groups in (("kind", self.by_kind), ("type", self.by_type)):
             rows.append(f"recall by {title}: " + "; ".join(
                 f"{name} ({g['curves']:.0f} curves) R5 {g['recall_5mm']:.1f} R10 {g['recall_10mm']:.1f} "
@@ -160,7 +161,10 @@ class Diagnosis:
                     + (f" (the {shown} longest below)" if self.false_count > shown else ""))
         rows += [f"  curve {f.index}: {f.length_mm:.0f} mm, {f.near_gt:.0f}% near GT: {f.cause}"
                  for f in self.false_curves[:20]]
-        return "\n".join(rows + [f"note: {n}" for n in self.notes])
+        legend = ("columns: seen = views that see it (on the rendered mesh; - without one), drew = views "
+                  f"whose map draws it (mean edge value >= {DRAWN_VIEW}), drawn = mean edge value along it "
+                  "in the views that see it, prim = median distance (mm) to the nearest primitive centre")
+        return "\n".join(rows + [legend] + [f"note: {n}" for n in self.notes])
 
 
 # --- the ground-truth curves ------------------------------------------------------------------
@@ -195,8 +199,8 @@ def ground_truth_curves(source: GroundTruthSource, scene_root: Path) -> CurveSou
             raw = read_obj_triangles(source.obj, read_obj_vertices(source.obj))
             mesh = Mesh(raw.positions * scale + offset, raw.normals)
         note = ("curves and dihedral signs from the mesh" if mesh is not None else
-                "no mesh: curves from the features file's line and circle parameters; dihedral unknown, "
-                "visibility unknown")
+                "no mesh: curves from the features file's line and circle parameters; visibility unknown "
+                "(every view the curve projects into counts)")
         return CurveSource(curves, mesh, [f"{source.features.name}: {note}"])
     if source.sampled_ply is None:
         raise InputError(source.features or scene_root, "no curve information for a per-curve diagnosis")
@@ -312,6 +316,7 @@ def view_evidence(curves: list[GroundTruthCurve], mesh, scene, detector: str | N
     gt_to_world = np.linalg.inv(scene.world_to_gt)
     wedge_sums = np.zeros((len(curves), 2, 2))  # [curve, into / outside, sum / views]
     points, tangents = zip(*(probes(c) for c in curves))
+    middles = (np.stack([p[PROBES // 2] for p in points]), np.stack([t[PROBES // 2] for t in tangents]))
     points = np.concatenate(points) @ gt_to_world[:3, :3].T + gt_to_world[:3, 3]
     tangents = np.concatenate(tangents) @ gt_to_world[:3, :3].T
     owner = np.repeat(np.arange(len(curves)), PROBES)
@@ -338,7 +343,7 @@ def view_evidence(curves: list[GroundTruthCurve], mesh, scene, detector: str | N
                 drawn_sum += np.where(in_view, value, 0.0)
                 drawn_views += in_view & (value >= DRAWN_VIEW)
                 counted = in_view if render is not None else in_view & (value >= DRAWN_VIEW)
-                into = _looks_into_wedge(curves, scene.world_to_gt @ np.r_[camera.center, 1.0])
+                into = _looks_into_wedge(curves, *middles, scene.world_to_gt @ np.r_[camera.center, 1.0])
                 for side, chosen in ((0, into & in_view), (1, ~into & in_view)):
                     wedge_sums[:, side] += np.stack([np.where(chosen, value, 0.0), chosen], axis=1)
             if background is not None:
@@ -353,15 +358,15 @@ def view_evidence(curves: list[GroundTruthCurve], mesh, scene, detector: str | N
                         drawn_sum / np.maximum(seeing, 1), wedge_means[:, 0], wedge_means[:, 1])
 
 
-def _looks_into_wedge(curves: list[GroundTruthCurve], centre: np.ndarray) -> np.ndarray:
+def _looks_into_wedge(curves: list[GroundTruthCurve], middles: np.ndarray, tangents: np.ndarray,
+                      centre: np.ndarray) -> np.ndarray:
     """(C,) whether a camera at `centre` (4,) homogeneous, ground-truth frame, looks at each
-    curve's middle from inside its `wedge` (across the curve, between the two directions into its
-    faces); False for curves without one."""
+    curve's middle (C, 3), unit tangents there (C, 3), from inside its `wedge` (across the curve,
+    between the two directions into its faces); False for curves without one."""
     result = np.zeros(len(curves), bool)
-    for i, curve in enumerate(curves):
+    for i, (curve, middle, tangent) in enumerate(zip(curves, middles, tangents)):
         if curve.wedge is None:
             continue
-        middle, tangent = (values[PROBES // 2] for values in probes(curve))
         view = centre[:3] / centre[3] - middle
         view -= tangent * (view @ tangent)
         (a, b), *_ = np.linalg.lstsq(curve.wedge.T, view, rcond=None)
@@ -535,6 +540,7 @@ def diagnose(prediction: EdgeCurves, gt_points: np.ndarray, source: CurveSource,
     if (owner < 0).any():
         notes.append(f"{int((owner < 0).sum())} ground-truth points lie on no identified curve (in no row)")
     evidence = view_evidence(curves, source.mesh, scene, detector)
+    notes.append(f"views: {min(len(scene), MAX_VIEWS)} of {len(scene)}; maps: {detector or 'none'}")
     curves = _dihedrals_from_maps(curves, evidence, notes)
     stages = run_stages(run, scene.world_to_gt) if run is not None else None
     if run is None:
@@ -682,10 +688,16 @@ def _false_curves(prediction: EdgeCurves, gt_points: np.ndarray, mesh, scene) ->
             length = float(np.linalg.norm(np.diff(chain, axis=0), axis=1).sum())
             found.append((length, index, near, samples))
     found.sort(key=lambda item: -item[0])
-    surface = _surface(mesh) if mesh is not None and found else None
-    result = [FalseCurve(index, round(length * 1000, 1), round(near, 1),
-                         _false_cause(samples, surface, scene))
-              for length, index, near, samples in found[:MAX_FALSE]]
+    shown = found[:MAX_FALSE]
+    samples = [item[3] for item in shown]
+    if not shown:
+        causes = []
+    elif mesh is not None:
+        causes = _surface_causes(samples, _surface(mesh))
+    else:
+        causes = _silhouette_causes(samples, scene)
+    result = [FalseCurve(index, round(length * 1000, 1), round(near, 1), cause)
+              for (length, index, near, _), cause in zip(shown, causes)]
     return result, len(found)
 
 
@@ -710,20 +722,33 @@ def _surface(mesh) -> tuple[cKDTree, np.ndarray]:
     return cKDTree(points), curved[triangle]
 
 
-def _false_cause(samples: np.ndarray, surface, scene) -> str:
-    """Why a predicted curve's samples (S, 3), ground-truth frame, lie on no edge."""
-    if surface is None:
-        from edgedog.curves.filtering import pixels_outside_masks
-
-        gt_to_world = np.linalg.inv(scene.world_to_gt)
-        outside = pixels_outside_masks(samples @ gt_to_world[:3, :3].T + gt_to_world[:3, 3], scene)
-        if outside is not None and np.median(outside) > BESIDE_PX:
-            return "outlier (outside the object's silhouettes)"
-        return "contour, texture or outlier: not told apart without the part's mesh"
+def _surface_causes(samples: list[np.ndarray], surface: tuple[cKDTree, np.ndarray]) -> list[str]:
+    """Why each false curve's samples (S_i, 3), ground-truth frame, lie on no edge, from the
+    part's surface (`_surface`)."""
     tree, curved = surface
-    distance, nearest = tree.query(samples)
-    if np.median(distance) > NEAR:
-        return f"outlier ({1000 * float(np.median(distance)):.0f} mm off the surface)"
-    if np.mean(curved[nearest]) >= 0.5:
-        return "contour of a curved face"
-    return "on a flat face: texture or shading"
+    causes = []
+    for points in samples:
+        distance, nearest = tree.query(points)
+        if np.median(distance) > NEAR:
+            causes.append(f"outlier ({1000 * float(np.median(distance)):.0f} mm off the surface)")
+        elif np.mean(curved[nearest]) >= 0.5:
+            causes.append("contour of a curved face")
+        else:
+            causes.append("on a flat face: texture or shading")
+    return causes
+
+
+def _silhouette_causes(samples: list[np.ndarray], scene) -> list[str]:
+    """Without the part's mesh: an outlier where most of a false curve's samples (S_i, 3) land
+    outside the object's masks, otherwise not told apart (the masks are read once for all)."""
+    from edgedog.curves.filtering import pixels_outside_masks
+
+    gt_to_world = np.linalg.inv(scene.world_to_gt)
+    every = np.concatenate(samples)
+    outside = pixels_outside_masks(every @ gt_to_world[:3, :3].T + gt_to_world[:3, 3], scene)
+    if outside is None:
+        return ["contour, texture or outlier: not told apart without the part's mesh or masks"] * len(samples)
+    ends = np.cumsum([len(points) for points in samples])[:-1]
+    return ["outlier (outside the object's silhouettes)" if np.median(part) > BESIDE_PX
+            else "contour, texture or outlier: not told apart without the part's mesh"
+            for part in np.split(outside, ends)]
