@@ -56,6 +56,13 @@ SCHEMA = (
 RAW = tuple(p.raw for p in SCHEMA)
 """The trained tensors' names, in schema order."""
 
+VIEW_OPACITY = Parameter("opacity_dirs", "opacity_dirs", ("opacity_dir_0", "opacity_dir_1", "opacity_dir_2"),
+                         "identity", "(N, 3) direction coefficients b of the view-dependent opacity")
+"""Optional parameter group of a run with `model.view_opacity` (edgedog.train.view_opacity): in
+the view from direction d (unit, primitive to camera) a primitive's opacity logit is a + b . d.
+Where a file has these columns, its `opacity` is each primitive's largest over the training
+views (the view-independent opacity that extraction reads), sigmoid(a + max_v b . d_v)."""
+
 UNCERTAINTY = "uncertainty"
 """Optional column: a per-primitive score carried through to edge_points.ply."""
 LAYER = "layer"
@@ -91,6 +98,8 @@ class PrimitiveArrays:
         means (N, 3), scales (N, 3), quats (N, 4), opacity (N,), k_raw (N, 2).
         layers: (N,) int64 layer index (None: a single-layer run, all in layer 0).
         uncertainty: (N,) optional score (None: the run has none).
+        opacity_dirs: (N, 3) b of a view-dependent opacity (`VIEW_OPACITY`; None: the opacity is
+            the same from every view).
     """
 
     means: np.ndarray
@@ -100,10 +109,12 @@ class PrimitiveArrays:
     k_raw: np.ndarray
     layers: np.ndarray | None = None
     uncertainty: np.ndarray | None = None
+    opacity_dirs: np.ndarray | None = None
 
     @classmethod
     def from_raw(cls, raw: Mapping[str, np.ndarray], layers: np.ndarray | None = None) -> PrimitiveArrays:
-        """Activate one array per raw parameter (`RAW`, e.g. `EdgeModel.to_numpy()`)."""
+        """Activate one array per raw parameter (`RAW`, e.g. `EdgeModel.to_numpy()`; other entries
+        are not read)."""
         return cls(**{p.activated: _ACTIVATIONS[p.activation][0](raw[p.raw]) for p in SCHEMA}, layers=layers)
 
     def raw(self) -> dict[str, np.ndarray]:
@@ -135,7 +146,8 @@ def write_point_columns(path: str | Path, columns: dict[str, np.ndarray]) -> Pat
 
 
 def write_ply(path: str | Path, primitives: PrimitiveArrays) -> Path:
-    """primitives.ply: the `SCHEMA` columns first, then `UNCERTAINTY` and `LAYER` when present."""
+    """primitives.ply: the `SCHEMA` columns first, then `UNCERTAINTY`, `LAYER` and the
+    `VIEW_OPACITY` columns when present."""
     columns = {}
     for p in SCHEMA:
         values = getattr(primitives, p.activated).reshape(len(primitives), len(p.columns))
@@ -143,6 +155,8 @@ def write_ply(path: str | Path, primitives: PrimitiveArrays) -> Path:
     for name, values in ((UNCERTAINTY, primitives.uncertainty), (LAYER, primitives.layers)):
         if values is not None:
             columns[name] = values
+    if primitives.opacity_dirs is not None:
+        columns.update({name: primitives.opacity_dirs[:, i] for i, name in enumerate(VIEW_OPACITY.columns)})
     return write_point_columns(path, columns)
 
 
@@ -150,7 +164,7 @@ def read_ply(path: str | Path) -> PrimitiveArrays:
     """primitives.ply as written by `edgedog train` (activated values, with the file's dtype).
 
     Raises InputError naming the file when it is missing, not a PLY, lacks a `SCHEMA` column
-    or holds NaN, infinite values or zero quaternions.
+    or some of the `VIEW_OPACITY` columns, or holds NaN, infinite values or zero quaternions.
     """
     path = Path(path)
     if not path.is_file():
@@ -165,12 +179,18 @@ def read_ply(path: str | Path) -> PrimitiveArrays:
         raise InputError(path, f"not a primitives PLY: no vertex properties {', '.join(missing)}")
     arrays = {p.activated: np.stack([vertex[name] for name in p.columns], axis=1) for p in SCHEMA}
     arrays["opacity"] = arrays["opacity"][:, 0]
-    geometry = np.hstack([arrays["means"], arrays["scales"], arrays["quats"]])
+    dir_columns = [name for name in VIEW_OPACITY.columns if name in names]
+    if dir_columns and len(dir_columns) < len(VIEW_OPACITY.columns):
+        raise InputError(path, f"has {', '.join(dir_columns)} but not all of "
+                               f"{', '.join(VIEW_OPACITY.columns)}")
+    opacity_dirs = np.stack([vertex[name] for name in dir_columns], axis=1) if dir_columns else None
+    geometry = np.hstack([arrays["means"], arrays["scales"], arrays["quats"],
+                          np.zeros((len(arrays["means"]), 0)) if opacity_dirs is None else opacity_dirs])
     if not np.all(np.isfinite(geometry)) or np.any(np.all(arrays["quats"] == 0, axis=1)):
         raise InputError(path, "primitives contain NaN, infinite values or zero quaternions")
     layers = np.rint(vertex[LAYER]).astype(np.int64) if LAYER in names else None
     uncertainty = vertex[UNCERTAINTY] if UNCERTAINTY in names else None
-    return PrimitiveArrays(**arrays, layers=layers, uncertainty=uncertainty)
+    return PrimitiveArrays(**arrays, layers=layers, uncertainty=uncertainty, opacity_dirs=opacity_dirs)
 
 
 @dataclass

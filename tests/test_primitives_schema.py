@@ -16,6 +16,7 @@ from edgedog.curves.extract import extract_primitives, extract_run
 from edgedog.primitives import (
     RAW,
     SCHEMA,
+    VIEW_OPACITY,
     EdgePrimitives,
     PrimitiveArrays,
     read_ply,
@@ -48,7 +49,7 @@ def assert_same(a: PrimitiveArrays, b: PrimitiveArrays) -> None:
 
 
 def test_the_schema_names_the_trained_tensors_and_the_rasterizers_parameters():
-    assert GROUPS == RAW
+    assert GROUPS == (*RAW, VIEW_OPACITY.raw)
     raster_fields = [f.name for f in dataclasses.fields(Primitives)]
     assert raster_fields == [*RAW, "colors"]
     arrays = [f.name for f in dataclasses.fields(PrimitiveArrays)]

@@ -65,8 +65,13 @@ def test_density_control_events_and_outputs(box, tmp_path):
             assert added > 0 and added % trainer.config.strategy.duplicate_copies == 0
         else:
             assert event["after"] <= event["before"]
-    # Adam's moments stay aligned with the parameters through every change.
+    # Adam's moments stay aligned with the parameters through every change; b of the view-dependent
+    # opacity (off by default) is never trained.
+    assert not trainer.model.opacity_dirs.any()
     for name, tensor in trainer.model.tensors().items():
+        if name == "opacity_dirs":
+            assert not trainer.optimizers.adams[name].state
+            continue
         state = trainer.optimizers.adams[name].state[tensor]
         assert state["exp_avg"].shape == tensor.shape
         assert torch.isfinite(tensor).all()

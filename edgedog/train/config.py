@@ -68,6 +68,8 @@ MAX_SEED = 2**32 - 1
 MAX_RATE = 1.0
 """Adam moves a parameter by about its learning rate per step whatever the gradient: 1 scene unit
 (or 1 px, 1 log-scale unit) per step is already far past any useful rate."""
+MAX_DECAY = 1 / MAX_RATE
+"""Weight decay: each step shrinks a parameter by its learning rate times this, at most all of it."""
 
 
 @dataclass(frozen=True)
@@ -147,6 +149,15 @@ class ModelSettings(Settings):
     """'dog' (EdgeDoG) or 'gaussian' (the EdgeGaussians baseline)."""
     k_activation: KActivation = "sigmoid"
     """Activation of k: 'sigmoid' for ABC, 'exp' for other data (docs/METHOD.md)."""
+    view_opacity: bool = False
+    """A view-dependent opacity: each primitive's opacity logit in a view is a + b . d, with d the
+    unit direction from its centre to the camera and b (3,) trained from `view_opacity_from_epoch`
+    (edgedog.train.view_opacity), so that an edge hidden from most views (a concave corner) is
+    not penalised as a false edge where it is hidden. Off: one opacity for every view (the
+    paper's model). primitives.ply then holds b and, as `opacity`, the largest over the views."""
+    view_opacity_cap: Annotated[float, Range(0, MAX_LOGIT)] = 6.0
+    """Largest |b| (logit units): a primitive's logit varies by at most twice this over the sphere
+    of directions."""
 
 
 @dataclass(frozen=True)
@@ -178,6 +189,10 @@ class ScheduleSettings(Settings):
     quats_from_epoch: Epoch = 30
     lr_k: Rate = 1e-4
     """Learning rate of the DoG shape k (none for the 'gaussian' kernel)."""
+    lr_view_opacity: Rate = 0.03
+    """Learning rate of the view-dependent opacity's b (`model.view_opacity`), from
+    `view_opacity_from_epoch` on."""
+    view_opacity_from_epoch: Epoch = 20
 
 
 @dataclass(frozen=True)
@@ -212,6 +227,10 @@ class LossSettings(Settings):
     chose exp(Up); measured here, exp(Up) fits the occluding contours of curved surfaces (where the
     rendered depth jumps) and exp(-Up) scores higher (docs/BENCHMARKS.md, "the weighting of the
     pixel uncertainty")."""
+    view_opacity_decay: Annotated[float, Range(0, MAX_DECAY)] = 0.1
+    """Decoupled weight decay of the view-dependent opacity's b (AdamW): each step shrinks b by
+    lr_view_opacity x this, so b holds about 1 / this (logit units) only where the views agree
+    on it, and falls back to 0 where their pushes cancel (one view's noise)."""
 
 
 @dataclass(frozen=True)

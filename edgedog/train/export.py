@@ -15,6 +15,6 @@ def write_points(path: Path, means: np.ndarray) -> None:
 
 
 def write_primitives(path: Path, snapshot) -> None:
-    """primitives.ply of a `Snapshot`: every primitive's activated parameters and its layer
-    when the snapshot has layers (edgedog.primitives.SCHEMA)."""
+    """primitives.ply of a `Snapshot`: every primitive's activated parameters, its layer when the
+    snapshot has layers, and b of a view-dependent opacity when it has one (edgedog.primitives)."""
     write_ply(path, snapshot.primitives)

@@ -9,12 +9,13 @@ import numpy as np
 import torch
 
 from edgedog.init.points import InitialPoints
-from edgedog.primitives import RAW
+from edgedog.primitives import RAW, VIEW_OPACITY
 from edgedog.renderer.footprint import quat_to_rotmat
 from edgedog.renderer.primitives import Primitives
 
-GROUPS = RAW
-"""The parameter groups, one tensor (and optimizer) each (edgedog.primitives.SCHEMA)."""
+GROUPS = (*RAW, VIEW_OPACITY.raw)
+"""The parameter groups, one tensor (and optimizer) each: edgedog.primitives.SCHEMA's, which
+the rasterizer takes, then the view-dependent opacity's b (edgedog.train.view_opacity)."""
 
 
 @dataclass
@@ -24,6 +25,8 @@ class EdgeModel:
 
     Attributes:
         means: (N, 3); log_scales: (N, 3); quats: (N, 4); opacity_logits: (N,); k_raw: (N, 2).
+        opacity_dirs: (N, 3) b of the view-dependent opacity (zeros when not given; trained only
+            with `model.view_opacity`).
     Colours are fixed to one (edge maps are single-channel intensities).
     """
 
@@ -32,6 +35,11 @@ class EdgeModel:
     quats: torch.Tensor
     opacity_logits: torch.Tensor
     k_raw: torch.Tensor
+    opacity_dirs: torch.Tensor | None = None
+
+    def __post_init__(self):
+        if self.opacity_dirs is None:
+            self.opacity_dirs = self.means.new_zeros(len(self.means), 3)
 
     @classmethod
     def from_points(cls, points: InitialPoints, opacity: float, k_init: tuple[float, float],
@@ -50,8 +58,9 @@ class EdgeModel:
     @classmethod
     def from_numpy(cls, arrays) -> EdgeModel:
         """Tensors sharing the memory of `arrays` (a mapping with one array per group, as
-        `to_numpy` gives); they do not require gradients."""
-        return cls(**{name: torch.from_numpy(np.asarray(arrays[name])) for name in GROUPS})
+        `to_numpy` gives; without opacity_dirs, zeros); they do not require gradients."""
+        return cls(**{name: torch.from_numpy(np.asarray(arrays[name])) for name in GROUPS
+                      if name in RAW or name in arrays})
 
     def requires_grad_(self) -> EdgeModel:
         for name in GROUPS:
@@ -77,7 +86,9 @@ class EdgeModel:
                             for name, tensor in self.tensors().items()})
 
     def primitives(self) -> Primitives:
-        return Primitives(**self.tensors(), colors=torch.ones(len(self), 1, device=self.device))
+        """The rasterizer's primitives, with the opacity logits a (the same in every view)."""
+        return Primitives(**{name: getattr(self, name) for name in RAW},
+                          colors=torch.ones(len(self), 1, device=self.device))
 
     def replace(self, tensors: dict[str, torch.Tensor]) -> None:
         """Swap in new leaf tensors (after pruning or duplication)."""

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import torch
 
+from edgedog.primitives import VIEW_OPACITY
 from edgedog.train.config import TrainConfig
 from edgedog.train.model import GROUPS, EdgeModel
 
@@ -19,15 +20,23 @@ def learning_rates(config: TrainConfig, epoch: int) -> dict[str, float]:
         "quats": s.lr_quats if epoch >= s.quats_from_epoch else 0.0,
         "opacity_logits": s.lr_opacity if epoch >= s.opacity_from_epoch else 0.0,
         "k_raw": s.lr_k if config.model.kernel == "dog" else 0.0,
+        VIEW_OPACITY.raw: (s.lr_view_opacity
+                           if config.model.view_opacity and epoch >= s.view_opacity_from_epoch else 0.0),
     }
 
 
 class Optimizers:
-    """Adam per group of an EdgeModel; rebinds to the model's tensors after each change."""
+    """Adam per group of an EdgeModel; rebinds to the model's tensors after each change.
+
+    The view-dependent opacity's b has AdamW's decoupled decay (`loss.view_opacity_decay`): each
+    step shrinks it by lr x decay, so only a push that the views agree on keeps it from 0.
+    """
 
     def __init__(self, model: EdgeModel, config: TrainConfig):
         self.config = config
-        self.adams = {name: torch.optim.Adam([tensor], lr=0.0, eps=1e-15)
+        self.adams = {name: (torch.optim.AdamW([tensor], lr=0.0, eps=1e-15,
+                                               weight_decay=config.loss.view_opacity_decay)
+                             if name == VIEW_OPACITY.raw else torch.optim.Adam([tensor], lr=0.0, eps=1e-15))
                       for name, tensor in model.tensors().items()}
 
     def set_epoch(self, epoch: int) -> None:
@@ -63,5 +72,9 @@ class Optimizers:
         return {name: adam.state_dict() for name, adam in self.adams.items()}
 
     def load_state_dict(self, state: dict) -> None:
+        """Restore `state_dict`'s output; a state saved before the view-dependent opacity existed
+        has no entry for its group, whose Adam starts afresh."""
         for name, adam in self.adams.items():
+            if name == VIEW_OPACITY.raw and name not in state:
+                continue
             adam.load_state_dict(state[name])

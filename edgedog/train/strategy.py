@@ -15,6 +15,7 @@ from edgedog.train.config import TrainConfig
 from edgedog.train.model import EdgeModel
 from edgedog.train.optim import Optimizers
 from edgedog.train.resolution import ViewSet
+from edgedog.train.view_opacity import camera_centres, largest_logits, seen_from
 
 
 @dataclass
@@ -57,6 +58,7 @@ class DensityStrategy:
     def __init__(self, config: TrainConfig, raster: RasterConfig):
         self.settings, self.epochs = config.strategy, config.schedule.epochs
         self.raster = raster
+        self.view_opacity = config.model.view_opacity
 
     def initial_state(self, n: int, device: torch.device) -> StrategyState:
         return StrategyState(absgrad=torch.zeros(n, device=device))
@@ -78,10 +80,11 @@ class DensityStrategy:
             events.append(self._duplicate(model, optimizers, state, generator))
         if epoch in c.cull_projection_epochs:
             events.append(self._cull(model, optimizers, state, "projection",
-                                     self._edge_hit_share(model, views) < c.cull_projection_below))
+                                     self._edge_hit_share(model, views) < c.cull_projection_below, views))
         if epoch in c.cull_opacity_epochs:
-            opacity = torch.sigmoid(model.opacity_logits.detach())
-            events.append(self._cull(model, optimizers, state, "opacity", opacity < c.cull_opacity_below))
+            opacity = torch.sigmoid(self._largest_logits(model, views))
+            events.append(self._cull(model, optimizers, state, "opacity", opacity < c.cull_opacity_below,
+                                     views))
         if c.primitive_uncertainty and (epoch + 1) % c.fisher_every == 0 and epoch + 1 < self.epochs:
             events.append(self._fisher_prune(model, optimizers, state, views, keep_ratio))
         for event in events:
@@ -121,18 +124,37 @@ class DensityStrategy:
         self._apply(model, optimizers, state, rows, copies_from=before, means_noise=noise)
         return {"event": "duplicate", "before": before, "after": len(model)}
 
-    def _cull(self, model, optimizers, state, reason: str, cull: torch.Tensor) -> dict:
+    def _largest_logits(self, model: EdgeModel, views: ViewSet) -> torch.Tensor:
+        """(N,) each primitive's opacity logit, its largest over the views when it depends on the
+        view (no gradient)."""
+        if not self.view_opacity:
+            return model.opacity_logits.detach()
+        return largest_logits(model.opacity_logits, model.opacity_dirs, model.means,
+                              camera_centres(views.cameras, model.device))
+
+    def _cull(self, model, optimizers, state, reason: str, cull: torch.Tensor, views: ViewSet) -> dict:
         before = len(model)
         self._apply(model, optimizers, state, torch.nonzero(~cull).squeeze(1))
+        cap = self.settings.opacity_logit_cap
         with torch.no_grad():  # EdgeGaussians resets opacities after a cull by capping the logits
-            model.opacity_logits.clamp_(max=self.settings.opacity_logit_cap)
+            if self.view_opacity:  # a view-dependent one: its largest over the views
+                model.opacity_logits.sub_((self._largest_logits(model, views) - cap).clamp_min(0))
+            else:
+                model.opacity_logits.clamp_(max=cap)
         return {"event": f"cull_{reason}", "before": before, "after": len(model)}
 
     def _edge_hit_share(self, model: EdgeModel, views: ViewSet) -> torch.Tensor:
         return edge_hit_share(model.means.detach().double().cpu().numpy(), views.pinholes, views.edge_masks)
 
     def _fisher_prune(self, model, optimizers, state, views: ViewSet, keep_ratio: float) -> dict:
-        scores = fisher_information(model.primitives(), views.cameras, self.raster)
+        if self.view_opacity:  # each view with the opacities seen from it
+            centres = camera_centres(views.cameras, model.device)
+            with torch.no_grad():
+                scores = sum(fisher_information(seen_from(model.primitives(), model.opacity_dirs, centre),
+                                                [camera], self.raster)
+                             for camera, centre in zip(views.cameras, centres))
+        else:
+            scores = fisher_information(model.primitives(), views.cameras, self.raster)
         before = len(model)
         keep_count = max(1, int(round(keep_ratio * before)))
         order = torch.argsort(scores, descending=True, stable=True)

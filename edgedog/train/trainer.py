@@ -6,6 +6,7 @@ copies, never live tensors) and changes `controls`, which apply at the next step
 
 from __future__ import annotations
 
+import dataclasses
 import resource
 import threading
 import time
@@ -23,7 +24,7 @@ from edgedog.edges.registry import make_detector
 from edgedog.errors import ConfigError, InputError
 from edgedog.files import atomic_write_json
 from edgedog.init import initialize
-from edgedog.primitives import PrimitiveArrays
+from edgedog.primitives import VIEW_OPACITY, PrimitiveArrays
 from edgedog.renderer.config import RasterConfig
 from edgedog.renderer.ops import device_name, resolve_device
 from edgedog.renderer.primitives import RasterCamera
@@ -44,6 +45,7 @@ from edgedog.train.targets import (
     prepare_maps,
     scene_outlines,
 )
+from edgedog.train.view_opacity import camera_centres, cap_, largest_logits, seen_from
 
 GEOMETRY_GROUPS = ("means", "log_scales", "quats")  # what the orientation losses move
 
@@ -77,6 +79,8 @@ class Snapshot:
             the activated parameters (edgedog.primitives.SCHEMA), the fixed lower layers' first.
         pruned_positions: (M, 3) centres removed by the last Fisher pruning.
         layers: (N,) int64 layer index of each primitive (None: all in layer 0).
+        opacity_dirs: (N, 3) b of a view-dependent opacity (None: the same from every view); with
+            it, `opacity` is each primitive's largest over the training views.
     """
 
     step: int
@@ -89,11 +93,13 @@ class Snapshot:
     k_raw: np.ndarray
     pruned_positions: np.ndarray
     layers: np.ndarray | None = None
+    opacity_dirs: np.ndarray | None = None
 
     @property
     def primitives(self) -> PrimitiveArrays:
         """The snapshot's primitives (its arrays, not copies)."""
-        return PrimitiveArrays(self.means, self.scales, self.quats, self.opacity, self.k_raw, self.layers)
+        return PrimitiveArrays(self.means, self.scales, self.quats, self.opacity, self.k_raw, self.layers,
+                               opacity_dirs=self.opacity_dirs)
 
 
 def _finite_grads(*models: EdgeModel) -> int:
@@ -113,19 +119,44 @@ def _finite_grads(*models: EdgeModel) -> int:
 
 
 def stack_snapshot(stack: LowerLayers, step: int = 0, epoch: int = 0, loss: float = float("nan"),
-                   pruned_positions: np.ndarray | None = None) -> Snapshot:
-    """A Snapshot (activated copies) of a whole layered model."""
-    p = PrimitiveArrays.from_raw(stack.model.to_numpy(), stack.layers.numpy())
+                   pruned_positions: np.ndarray | None = None,
+                   view_centres: torch.Tensor | None = None) -> Snapshot:
+    """A Snapshot (activated copies) of a whole layered model.
+
+    `view_centres`: (V, 3) camera centres of the training views of a view-dependent opacity; the
+    snapshot then keeps b, and its opacity is each primitive's largest over those views.
+    """
+    arrays = stack.model.to_numpy()
+    dirs = None
+    if view_centres is not None:
+        m = stack.model
+        largest = largest_logits(m.opacity_logits, m.opacity_dirs, m.means, view_centres.to(m.device))
+        arrays["opacity_logits"], dirs = largest.cpu().numpy(), arrays[VIEW_OPACITY.raw]
+    p = PrimitiveArrays.from_raw(arrays, stack.layers.numpy())
     pruned = np.zeros((0, 3), np.float32) if pruned_positions is None else pruned_positions.copy()
-    return Snapshot(step, epoch, loss, p.means, p.scales, p.quats, p.opacity, p.k_raw, pruned, p.layers)
+    return Snapshot(step, epoch, loss, p.means, p.scales, p.quats, p.opacity, p.k_raw, pruned, p.layers, dirs)
+
+
+def saved_model(saved: dict, key: str, path: Path, with_layers: bool = False) -> dict[str, np.ndarray]:
+    """`model_arrays` of a read checkpoint, with the view-dependent opacity's b (N, 3) where it
+    holds one (a checkpoint written before b existed has none: zeros)."""
+    arrays = model_arrays(saved, key, path, with_layers)
+    dirs = saved[key].get(VIEW_OPACITY.raw)
+    if dirs is None:
+        return arrays
+    if (not isinstance(dirs, torch.Tensor) or dirs.dtype != torch.float32
+            or tuple(dirs.shape) != (len(arrays["means"]), 3) or not bool(torch.isfinite(dirs).all())):
+        raise InputError(path, f"malformed checkpoint: '{key}.{VIEW_OPACITY.raw}' must be finite float32 "
+                               f"of shape ({len(arrays['means'])}, 3)")
+    return {**arrays, VIEW_OPACITY.raw: dirs.numpy()}
 
 
 def read_stack(run_dir: Path) -> LowerLayers:
     """The whole model of a run folder from its checkpoint: its lower layers and its own."""
     path = Path(run_dir) / CHECKPOINT
     saved = read_checkpoint(path)
-    lower = LowerLayers.from_numpy(model_arrays(saved, "lower", path, with_layers=True))
-    top = EdgeModel.from_numpy(model_arrays(saved, "model", path))
+    lower = LowerLayers.from_numpy(saved_model(saved, "lower", path, with_layers=True))
+    top = EdgeModel.from_numpy(saved_model(saved, "model", path))
     return lower.plus(top, _saved_config(saved, path).layers.layer)
 
 
@@ -170,6 +201,8 @@ class Trainer:
         coarse = coarser(fine, config.schedule.coarse_downscale)
         self.views = fine.to(self.device)
         self.coarse = self.views if coarse is fine else coarse.to(self.device)
+        # (V, 3) camera centres of the views when the opacity depends on the view, else None.
+        self.centres = camera_centres(self.cameras, self.device) if config.model.view_opacity else None
         self.learned_shift = (LearnedShift(config, self.device) if config.maps.correction == "learned"
                               else None)
         self.strategy = DensityStrategy(config, self.raster)
@@ -219,8 +252,12 @@ class Trainer:
         tune = self.config.layers.lower_lr_scale > 0 and len(self.lower) > 0
         for tensor in self.lower.model.tensors().values():
             tensor.requires_grad_(tune)
-        self.lower_optimizers = (Optimizers(self.lower.model, lower_layer_config(self.config))
-                                 if tune else None)
+        self.lower_optimizers = None
+        if tune:
+            lower = lower_layer_config(self.config)
+            rate = self.config.schedule.lr_view_opacity * self.config.layers.lower_lr_scale
+            self.lower_optimizers = Optimizers(self.lower.model, dataclasses.replace(
+                lower, schedule=dataclasses.replace(lower.schedule, lr_view_opacity=rate)))
 
     # --- training
     @property
@@ -265,7 +302,10 @@ class Trainer:
         # The stages' names label the step for `edgedog bench steps` (torch.profiler); outside a
         # profiler they cost a few microseconds.
         with record_function("rasterize"):
-            out = rasterize(self.lower.stacked_with(self.model), views.cameras[view], self.raster)
+            primitives = self.lower.stacked_with(self.model)
+            if self.centres is not None:
+                primitives = seen_from(primitives, self._stacked_dirs(), self.centres[view])
+            out = rasterize(primitives, views.cameras[view], self.raster)
         with record_function("pixel uncertainty"):
             weight = None
             if c.pixel_uncertainty:
@@ -293,6 +333,9 @@ class Trainer:
                 if optimizers is not None:
                     optimizers.step()
                     optimizers.zero_grad()
+            if self.centres is not None:
+                for model in (self.model, self.lower.model):
+                    cap_(model.opacity_dirs, self.config.model.view_opacity_cap)
             self._epoch_losses.append(loss.item())
         if self.step_index % c.orientation_every == 0:
             with record_function("orientation losses"):
@@ -305,6 +348,12 @@ class Trainer:
             with record_function("snapshot"):
                 self.latest_snapshot = self.snapshot(self._epoch_losses[-1])
         return self._epoch_losses[-1]
+
+    def _stacked_dirs(self) -> torch.Tensor:
+        """(N, 3) b of the lower layers' primitives and this run's, in the render's order."""
+        if not len(self.lower):
+            return self.model.opacity_dirs
+        return torch.cat([self.lower.model.opacity_dirs, self.model.opacity_dirs])
 
     def views_at(self, epoch: int) -> ViewSet:
         """The views a step of `epoch` renders: coarse before `schedule.fine_from_epoch`."""
@@ -366,7 +415,8 @@ class Trainer:
         return self.lower.plus(self.model, self.config.layers.layer)
 
     def snapshot(self, loss: float = float("nan")) -> Snapshot:
-        return stack_snapshot(self.stack(), self.step_index, self.epoch, loss, self.state.pruned_positions)
+        return stack_snapshot(self.stack(), self.step_index, self.epoch, loss, self.state.pruned_positions,
+                              self.centres)
 
     def save_checkpoint(self) -> Path:
         """Everything needed to continue exactly: model, Adam moments, strategy, random state."""
@@ -388,8 +438,8 @@ class Trainer:
         saved = read_checkpoint(path)
         if _saved_config(saved, path) != self.config:
             raise InputError(path, "the checkpoint was made with another configuration")
-        self.model = EdgeModel.from_numpy(model_arrays(saved, "model", path)).to(self.device).requires_grad_()
-        lower = LowerLayers.from_numpy(model_arrays(saved, "lower", path, with_layers=True))
+        self.model = EdgeModel.from_numpy(saved_model(saved, "model", path)).to(self.device).requires_grad_()
+        lower = LowerLayers.from_numpy(saved_model(saved, "lower", path, with_layers=True))
         self.lower = lower.to(self.device)
         try:
             self._restore(saved)
