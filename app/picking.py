@@ -178,11 +178,12 @@ class PrimitivePick:
 
     @property
     def text(self) -> str:
+        """Three lines: which primitive and its Fisher score, its size and opacity, its DoG shape."""
         fisher = "computing..." if self.fisher is None else f"{self.fisher:.3g}"
         scales = " x ".join(f"{s:.3g}" for s in self.scales)
-        return (f"primitive {self.index} ({self.layer}, step {self.step}): scale {scales}, "
-                f"opacity {self.opacity:.3f}, k ({self.k[0]:.3g}, {self.k[1]:.3g}) a {self.shape[0]:.3g} "
-                f"t {self.shape[1]:.3g}, Fisher U {fisher}")
+        return (f"primitive {self.index} ({self.layer}, step {self.step}): Fisher U {fisher}\n"
+                f"  scale {scales}, opacity {self.opacity:.3f}\n"
+                f"  k ({self.k[0]:.3g}, {self.k[1]:.3g}): a {self.shape[0]:.3g}, t {self.shape[1]:.3g}")
 
     def scored(self, fisher: FisherScores) -> PrimitivePick:
         """This pick with its Fisher score when `fisher` holds its snapshot's primitives' (the same
@@ -202,6 +203,6 @@ class Pick:
 
     @property
     def lines(self) -> list[str]:
-        """The readout: a line per item found, or why there is none."""
-        found = [item.text for item in (self.curve, self.primitive) if item is not None]
-        return found or ["nothing here (click on a curve or a splat's centre)"]
+        """The readout's lines: those of each item found, or why there is none."""
+        found = "\n".join(item.text for item in (self.curve, self.primitive) if item is not None)
+        return found.split("\n") if found else ["nothing here (click on a curve or a splat's centre)"]

@@ -72,8 +72,10 @@ PICKED_COLOR, PICKED_POINT, PICKED_CURVE_POINTS = (1.0, 1.0, 1.0), 9.0, 4.0
 """The picked curve (its vertices as points PICKED_CURVE_POINTS pixels wide) and the picked
 primitive's centre (a point PICKED_POINT pixels wide)."""
 LINE_LAYERS = ("curves", "cameras", "selected camera", "ground truth", "pruned", "picked curve", "picked")
-FISHER_EVERY = 2.0
-"""Seconds between two Fisher score computations while training (they share the CPU with it)."""
+FISHER_EVERY, FISHER_SHARE = 2.0, 0.2
+"""Seconds between the starts of two Fisher score computations while training: at least
+FISHER_EVERY, and long enough for them to take at most FISHER_SHARE of the time (they share the
+CPU with the training)."""
 FISHER_FLOOR = 1e-12
 """Fisher scores are coloured by log10(max(U, FISHER_FLOOR)) (a primitive no view sees has 0)."""
 
@@ -185,7 +187,7 @@ class View3D:
         """The latest Fisher scores computed."""
         self.fisher_error: str | None = None
         """Why the last Fisher computation failed (None: it did not)."""
-        self._fisher_job, self._fisher_asked = BackgroundJob("fisher"), -np.inf
+        self._fisher_job, self._fisher_asked, self._fisher_seconds = BackgroundJob("fisher"), -np.inf, 0.0
         self._uploads = 0
         self.renders = 0
         """How many times the target was drawn (it is only when the picture changes)."""
@@ -281,6 +283,7 @@ class View3D:
             self.fisher_error = done.error
         elif done is not None:
             self.fisher, self.fisher_error = done.value, None
+            self._fisher_seconds = time.monotonic() - self._fisher_asked
             self._color_key = None
             primitive = None if self.picked is None else self.picked.primitive
             if primitive is not None and primitive.fisher is None:
@@ -294,7 +297,8 @@ class View3D:
             return
         fresh = self.fisher is not None and self.fisher.key == published.key
         now = time.monotonic()
-        if fresh or self._fisher_job.busy or now - self._fisher_asked < FISHER_EVERY:
+        wait = max(FISHER_EVERY, self._fisher_seconds / FISHER_SHARE)
+        if fresh or self._fisher_job.busy or now - self._fisher_asked < wait:
             return
         snapshot, cameras = published.snapshot, self.cameras
         self._fisher_job.submit(published.key, lambda: FisherScores(

@@ -60,8 +60,10 @@ def draw(studio, area: layout.Area) -> None:
             if widgets.button("reset view", "look at the scene from the side, as at the start (r)",
                               small=True):
                 studio.state.request("reset_view")
+            imgui.push_text_wrap_pos(0.0)  # at the view's right edge
             imgui.text_disabled(HELP)
             _readout(studio)
+            imgui.pop_text_wrap_pos()
     imgui.end()
     imgui.pop_style_var()
 
