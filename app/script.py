@@ -14,7 +14,10 @@ The script is JSON: {"report": "report.json", "actions": [...]}, each action one
                                             "frames" frames (default 8)
     {"key": "space"}, {"key": "ctrl+o"}     a key press (imgui.Key names, with ctrl+ or shift+)
     {"wheel": "inspector depth enlarged", "by": 2}   mouse-wheel notches over the widget's centre
+    {"move": "inspector depth enlarged", "at": [0.4, 0.6]}   the pointer to that point of the
+                                            widget's rectangle (fractions of its width and height)
     {"click_curve": 3}                      a left click on the middle of shown curve 3 in the 3D view
+                                            ("longest": of the longest curve shown)
     {"expect_state": {"view.picked.curve.index": 3}, "timeout": 10}
         as "expect", on dotted paths into the Studio (attributes, dict keys, list indices); a
         value, or [op, value]
@@ -47,7 +50,7 @@ FLOAT_TOLERANCE = 1e-6
 DRAG_STEPS = 8
 """Mouse moves a scripted drag is cut into."""
 MODIFIERS = {"ctrl": imgui.Key.mod_ctrl, "shift": imgui.Key.mod_shift}
-INPUT_ACTIONS = {"click", "drag", "key", "wheel", "click_curve"}
+INPUT_ACTIONS = {"click", "drag", "key", "wheel", "click_curve", "move"}
 """Actions that send input events (one action a frame, its events over several)."""
 
 
@@ -121,11 +124,13 @@ def wheel(x: float, y: float, notches: float) -> list[Callable[[], None]]:
     return [_mouse_move(x, y), lambda: imgui.get_io().add_mouse_wheel_event(0.0, notches)]
 
 
-def curve_point(studio, index: int) -> tuple[float, float]:
-    """Where on screen (points) the middle of shown curve `index` lies in the 3D view (ValueError
-    when it is not in sight)."""
+def curve_point(studio, index: int | str) -> tuple[float, float]:
+    """Where on screen (points) the middle of shown curve `index` ("longest": the longest shown)
+    lies in the 3D view (ValueError when it is not in sight)."""
     view = studio.view
-    if not 0 <= index < view.curves_shown:
+    if index == "longest" and view.curves_shown:
+        index = max(range(view.curves_shown), key=view.curve_length)
+    if not isinstance(index, int) or not 0 <= index < view.curves_shown:
         raise ValueError(f"no curve {index}: the 3D view shows {view.curves_shown}")
     pixel = view.curve_pixel(index)
     if pixel is None:
@@ -240,6 +245,10 @@ class ScriptDriver:
                 self._input = drag(widgets.center(action["drag"]), action["by"], frames)
             elif "wheel" in action:
                 self._input = wheel(*widgets.center(action["wheel"]), action["by"])
+            elif "move" in action:
+                x0, y0, x1, y1 = widgets.RECTS[action["move"]]
+                fx, fy = action["at"]
+                self._input = [_mouse_move(x0 + fx * (x1 - x0), y0 + fy * (y1 - y0))]
             else:
                 self._input = press(action["key"])
         self._input.pop(0)()

@@ -366,10 +366,8 @@ class View3D:
         segments, owners = chain_segments(self._chains)
         hit = pick_segments(camera, segments, owners, (x, y), near)
         if hit is not None:
-            chain = self._chains[hit.index]
-            length = float(np.linalg.norm(np.diff(chain, axis=0), axis=1).sum())
             kind = curve_kind(hit.index, len(self._curves.lines), len(self._curves.beziers))
-            curve = CurvePick(hit.index, kind, length)
+            curve = CurvePick(hit.index, kind, self.curve_length(hit.index))
         subset = self._splat_subset if self._show_splats else None
         hit = None if subset is None else pick_points(camera, subset.means, (x, y), near)
         if hit is not None:
@@ -392,6 +390,10 @@ class View3D:
         x, y = to_pixels(camera, local)
         inside = -0.5 <= x < camera.width - 0.5 and -0.5 <= y < camera.height - 0.5
         return (float(x), float(y)) if inside else None
+
+    def curve_length(self, index: int) -> float:
+        """The length of shown curve `index` as drawn (a Bezier's sampled polyline), scene units."""
+        return float(np.linalg.norm(np.diff(self._chains[index], axis=0), axis=1).sum())
 
     @property
     def curves_shown(self) -> int:

@@ -19,7 +19,8 @@ import numpy as np
 import pytest
 from edgedog.app.colors import curve_palette
 from edgedog.app.inspection import fisher_scores
-from edgedog.app.picking import TOLERANCE, to_camera, to_pixels
+from edgedog.app.picking import TOLERANCE, CurvePick, Pick, to_camera, to_pixels
+from edgedog.app.script import ScriptDriver, lookup
 from edgedog.app.state import COLOR_MODES, FISHER, Display
 from edgedog.app.view3d import View3D
 from edgedog.app.worker import Published
@@ -169,6 +170,20 @@ def test_every_layer_combination_draws_and_picks_under_every_colouring(view):
             index, pixel = isolated(view, snapshot.means, visible)
             picked = view.pick(*pixel).primitive
             assert picked.index == index and picked.layer == f"L{layers[index]}", (mode, shown)
+
+
+def test_scripts_expect_and_record_values_at_dotted_paths_into_the_studio():
+    studio = type("Studio", (), {})()
+    studio.view = type("View", (), {"picked": Pick((1.0, 2.0), CurvePick(3, "line", 0.5))})()
+    studio.state = type("State", (), {"layers": {"L0": [True, False]}})()
+    assert lookup(studio, "view.picked.curve.index") == 3 and lookup(studio, "state.layers.L0.1") is False
+    assert lookup(studio, "view.picked.primitive.index") is None  # no primitive picked
+    clock = iter(range(100)).__next__
+    driver = ScriptDriver({"actions": [{"expect_state": {"view.picked.curve.kind": "line",
+                                                         "view.picked.curve.length": ["<", 1]}},
+                                       {"record": {"picked": "view.picked.curve.index"}}]}, clock=clock)
+    driver.tick(studio)
+    assert driver.finished and driver.failure is None and driver.marks == {"picked": 3}
 
 
 # --- the window ------------------------------------------------------------------------------
