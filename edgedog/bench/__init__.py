@@ -1,1 +1,3 @@
-"""Benchmarks behind `edgedog bench ...`; results are recorded in docs/BENCHMARKS.md."""
+"""Measurements: the benchmarks behind `edgedog bench ...` (results recorded in
+docs/BENCHMARKS.md), detector calibration behind `edgedog calibrate-detector` (`calibrate`), and
+the studio's frame rate while it trains (`python -m edgedog.bench.studio`)."""
