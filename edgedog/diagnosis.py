@@ -5,18 +5,21 @@ lost; for every predicted curve that lies on no ground-truth edge, why.
 Kinds. A curve's dihedral sign (convex or concave: the material's wedge at the edge under or over
 180 degrees) comes with the ground truth: the B-rep of a generated scene (its curves file, or the
 part rebuilt from the scene's manifest for scenes written before curves carried it), or an ABC
-object's mesh. A convex (or unknown) curve is an "outline" where, in most of the views that see
-it, the pixels beside its projection on one side are background (the scene's masks, else the
-rendered depth). A concave curve is never an outline.
+object's mesh. An ABC object without a mesh (EMAP's copy) has its curves' faces in the features
+file but not which side is material: the maps decide (`_dihedrals_from_maps`). A convex (or
+unknown) curve is an "outline" where, in most of the views that see it, the pixels beside its
+projection on one side are background (the scene's masks, else the rendered depth); without a
+mesh, the views whose maps draw it stand for those that see it. A concave curve is never an
+outline.
 
-Where a missed curve (recall at 10 mm under MISSED_RECALL) was lost, the first of:
-occluded (seen by fewer than MIN_VIEWS views: needs the part's mesh, rendered offscreen), not
-drawn (mean edge value along its projection in the views that see it under MIN_DRAWN), no
-primitive formed (under half of its points have a primitive centre of primitives.ply within
-NEAR; and whether the last Fisher pruning, the one a run's checkpoint records, removed primitives
-on it, or it was never reached), dropped at extraction (under half
-have a point of edge_points.ply within NEAR: the filter that removed most of the primitives near
-it, re-applied), or dropped at curve fitting (edge points near it, no curve).
+Where a missed curve (recall at 10 mm under MISSED_RECALL) was lost, the first of: occluded (seen
+by fewer than MIN_VIEWS views: needs the part's mesh, rendered offscreen), not drawn (mean edge
+value along its projection in the views that see it under MIN_DRAWN), no primitive formed (under
+half of its points have a primitive centre of primitives.ply within NEAR; with whether the last
+Fisher pruning, the only one a run's checkpoint records, removed primitives on it), dropped at
+extraction (under half have a point of edge_points.ply within NEAR: the filter that removed most
+of the primitives near it, re-applied), or dropped at curve fitting (edge points near it, no
+curve).
 
 A predicted curve is false where under half of its samples lie within NEAR of the ground truth:
 an outlier (off the part's surface), the contour of a curved face (on a curved surface), or on a
