@@ -22,13 +22,14 @@ from edgedog.train.config import TrainConfig, with_settings
 from edgedog.train.layers import LowerLayers
 from edgedog.train.model import GROUPS, EdgeModel
 from edgedog.train.optim import Optimizers
-from edgedog.train.strategy import DensityStrategy
+from edgedog.train.strategy import DensityStrategy, edge_hit_share
 from edgedog.train.trainer import Trainer, read_stack
 from edgedog.train.view_opacity import (
     camera_centres,
     cap_,
     directions,
     largest_logits,
+    relative_opacity,
     seen_from,
     view_logits,
 )
@@ -278,3 +279,24 @@ def test_primitives_ply_round_trips_b_and_refuses_part_of_it(tmp_path):
                "opacity_dir_0": primitives.means[:, 0]}
     with pytest.raises(InputError, match="opacity_dir_0 but not all"):
         read_ply(write_point_columns(tmp_path / "b.ply", columns))
+
+
+def test_the_projection_cull_counts_only_the_views_where_a_primitive_is_drawn():
+    cameras = ring_cameras(4)
+    def pixels(points):  # every point at pixel (5, 5), inside the view
+        return np.full((len(points), 2), 5), np.ones(len(points), bool)
+
+    pinholes = [SimpleNamespace(pixels=pixels) for _ in cameras]
+    # The point lands on an edge in the first view only.
+    masks = [torch.ones(SIZE, SIZE, dtype=torch.bool)] + [torch.zeros(SIZE, SIZE, dtype=torch.bool)] * 3
+    points = np.zeros((2, 3))
+    assert edge_hit_share(points, pinholes, masks).tolist() == [0.25, 0.25]
+    ones = torch.ones(4, 2)
+    assert torch.equal(edge_hit_share(points, pinholes, masks, ones), edge_hit_share(points, pinholes, masks))
+    # The first is drawn in the first view only (b towards it); the second everywhere.
+    dirs = torch.tensor([[6.0, 0, 0], [0, 0, 0]])
+    weights = relative_opacity(torch.tensor([-3.0, -3.0]), dirs, torch.zeros(2, 3),
+                               camera_centres(cameras, torch.device("cpu")))
+    assert weights.max() == 1 and torch.equal(weights[:, 1], torch.ones(4))
+    share = edge_hit_share(points, pinholes, masks, weights)
+    assert share[0] > 0.9 and share[1] == 0.25

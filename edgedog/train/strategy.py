@@ -15,7 +15,7 @@ from edgedog.train.config import TrainConfig
 from edgedog.train.model import EdgeModel
 from edgedog.train.optim import Optimizers
 from edgedog.train.resolution import ViewSet
-from edgedog.train.view_opacity import camera_centres, largest_logits, seen_from
+from edgedog.train.view_opacity import camera_centres, largest_logits, relative_opacity, seen_from
 
 
 @dataclass
@@ -34,21 +34,28 @@ class StrategyState:
     fisher: np.ndarray = field(default_factory=lambda: np.zeros(0, np.float32))
 
 
-def edge_hit_share(points: np.ndarray, pinholes: list[Camera],
-                   edge_masks: list[torch.Tensor]) -> torch.Tensor:
+def edge_hit_share(points: np.ndarray, pinholes: list[Camera], edge_masks: list[torch.Tensor],
+                   weights: torch.Tensor | None = None) -> torch.Tensor:
     """(N,) share of the views seeing a point (N, 3) in which it lands on an edge pixel of that
-    view's (H, W) bool mask (0 for a point no view sees), on the masks' device."""
+    view's (H, W) bool mask (0 for a point no view sees), on the masks' device.
+
+    `weights`: (V, N) how much each view counts for each point (None: 1), e.g. a view-dependent
+    opacity's share of its largest, so that only the views where a primitive is drawn count.
+    """
     device = edge_masks[0].device if edge_masks else torch.device("cpu")
     seen = torch.zeros(len(points), device=device)
     on_edge = torch.zeros(len(points), device=device)
-    for camera, mask in zip(pinholes, edge_masks):
+    for view, (camera, mask) in enumerate(zip(pinholes, edge_masks)):
         pixels, inside = camera.pixels(points)  # projected on the host, in float64
         inside_t = torch.from_numpy(inside).to(device)
-        seen += inside_t.float()
         hit = torch.zeros(len(points), dtype=torch.bool, device=device)
         rows, cols = (torch.from_numpy(pixels[inside, k]).to(device) for k in (1, 0))
         hit[inside_t] = mask[rows, cols]
-        on_edge += hit.float()
+        counts, hits = inside_t.float(), hit.float()
+        if weights is not None:
+            counts, hits = counts * weights[view], hits * weights[view]
+        seen += counts
+        on_edge += hits
     return on_edge / seen.clamp_min(1)
 
 
@@ -144,15 +151,27 @@ class DensityStrategy:
         return {"event": f"cull_{reason}", "before": before, "after": len(model)}
 
     def _edge_hit_share(self, model: EdgeModel, views: ViewSet) -> torch.Tensor:
-        return edge_hit_share(model.means.detach().double().cpu().numpy(), views.pinholes, views.edge_masks)
+        """(N,) `edge_hit_share` of the centres; with a view-dependent opacity, each view counts
+        by the primitive's opacity there relative to its largest (a primitive hidden from a
+        view is not expected on its edges)."""
+        weights = None
+        if self.view_opacity:
+            weights = relative_opacity(model.opacity_logits, model.opacity_dirs, model.means,
+                                       camera_centres(views.cameras, model.device))
+        return edge_hit_share(model.means.detach().double().cpu().numpy(), views.pinholes, views.edge_masks,
+                              weights)
 
     def _fisher_prune(self, model, optimizers, state, views: ViewSet, keep_ratio: float) -> dict:
-        if self.view_opacity:  # each view with the opacities seen from it
+        if self.view_opacity:
+            # Each view with the opacities seen from it, per view where the primitive is drawn: a
+            # primitive that few views can see is not ranked below one that all views see.
             centres = camera_centres(views.cameras, model.device)
             with torch.no_grad():
                 scores = sum(fisher_information(seen_from(model.primitives(), model.opacity_dirs, centre),
                                                 [camera], self.raster)
                              for camera, centre in zip(views.cameras, centres))
+                scores = scores / relative_opacity(model.opacity_logits, model.opacity_dirs, model.means,
+                                                   centres).sum(0)
         else:
             scores = fisher_information(model.primitives(), views.cameras, self.raster)
         before = len(model)

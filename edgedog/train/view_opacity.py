@@ -74,6 +74,16 @@ def largest_logits(logits: torch.Tensor, dirs: torch.Tensor, means: torch.Tensor
         return best
 
 
+def relative_opacity(logits: torch.Tensor, dirs: torch.Tensor, means: torch.Tensor,
+                     centres: torch.Tensor) -> torch.Tensor:
+    """(V, N) each primitive's opacity in each view of `centres` (V, 3) divided by its largest
+    over them, in (0, 1] (no gradient): where it is drawn (1 everywhere when b = 0)."""
+    with torch.no_grad():
+        largest = torch.sigmoid(largest_logits(logits, dirs, means, centres))
+        return torch.stack([torch.sigmoid(view_logits(logits, dirs, means, centre)) / largest
+                            for centre in centres]) if len(centres) else torch.zeros(0, len(logits))
+
+
 def cap_(dirs: torch.Tensor, cap: float) -> None:
     """Shrink in place every row of b (N, 3) longer than `cap` to length `cap`."""
     with torch.no_grad():
