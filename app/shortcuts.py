@@ -23,6 +23,9 @@ GESTURES = (
     ("left drag", "orbit the 3D view"),
     ("right or middle drag, shift drag", "pan"),
     ("wheel", "zoom"),
+    ("click in the 3D view", "pick the curve and the splat under the mouse (read out over the view)"),
+    ("click an inspector", "enlarge it: the wheel zooms, a drag pans, 'all inspectors' goes back"),
+    ("hover an inspector", "read out the pixel: value, view, pixel"),
     ("drop a folder", "open it"),
 )
 DIGITS = [getattr(imgui.Key, f"_{digit}") for digit in range(1, 10)]
