@@ -300,3 +300,22 @@ def test_the_projection_cull_counts_only_the_views_where_a_primitive_is_drawn():
     assert weights.max() == 1 and torch.equal(weights[:, 1], torch.ones(4))
     share = edge_hit_share(points, pinholes, masks, weights)
     assert share[0] > 0.9 and share[1] == 0.25
+
+
+def test_a_layer_above_renders_the_lower_layers_with_their_b(box, tmp_path):
+    first = Trainer(box, tiny_config(view_opacity=True, view_opacity_from_epoch=0), tmp_path / "L0",
+                    progress=False)
+    first.run()
+    lower = first.stack()
+    before = lower.model.opacity_dirs.clone()
+    assert before.abs().max() > 0
+    config = tiny_config(view_opacity=True, view_opacity_from_epoch=0, layer=1, lower_lr_scale=0.5)
+    second = Trainer(box, config, tmp_path / "L1", progress=False, lower=lower)
+    second.run()
+    assert second.lower_optimizers.adams[VIEW_OPACITY.raw].param_groups[0]["lr"] == 0.5 * 0.03
+    assert not torch.equal(second.lower.model.opacity_dirs, before)  # fine-tuned
+    stack = read_stack(tmp_path / "L1")
+    torch.testing.assert_close(stack.model.opacity_dirs, torch.cat([second.lower.model.opacity_dirs,
+                                                                     second.model.opacity_dirs]).detach())
+    snapshot = second.snapshot()
+    assert snapshot.opacity_dirs.shape == (len(stack), 3) and np.isfinite(snapshot.opacity).all()
