@@ -12,6 +12,12 @@ sphere of directions and cannot single out one view, and |b| is held to `model.v
 
 d is treated as fixed per view (no gradient to the centres through it); a centre at the camera
 centre gets d = 0, the logit a.
+
+What reads one opacity per primitive reads its largest over the training views
+(`largest_logits`): the opacity cull and its reset, primitives.ply's `opacity`, and so curve
+extraction's opacity filter. Density control counts each view by the primitive's opacity there
+relative to that largest (`relative_opacity`): the projection cull's share of views in which it
+lands on an edge, and the Fisher score per view where it is drawn (edgedog.train.strategy).
 """
 
 from __future__ import annotations
