@@ -19,30 +19,21 @@ from edgedog.curve_files import read_edges
 from edgedog.curves.report import REPORT
 from edgedog.errors import InputError
 from edgedog.files import read_json
-from edgedog.train.layered import LayeredRun, selections
-from edgedog.train.lifecycle import LOG
-from edgedog.train.run_folder import RunFolder
+from edgedog.train.lifecycle import LOG, RunRecord
+from edgedog.train.run_folder import RunFolder, read_run
 from edgedog.train.trainer import read_stack, stack_snapshot
 
 CURVES = "curves.json"
 
 
-def layer_detectors(run: LayeredRun) -> dict[int, str]:
-    """Layer index -> the maps it was fitted to, for the finished layers of a layered run."""
+def layer_detectors(layers: tuple[RunFolder, ...]) -> dict[int, str]:
+    """Layer index -> the maps it was fitted to, for the layers (bottom first) that wrote their log.json."""
     found = {}
-    for index in range(len(run.levels)):
-        log = run.layer_dir(index) / LOG
+    for index, layer in enumerate(layers):
+        log = layer.path / LOG
         if log.is_file():
             found[index] = read_json(log).get("detector")
     return {index: name for index, name in found.items() if isinstance(name, str)}
-
-
-def curves_folder(path: Path, layered: LayeredRun | None) -> Path:
-    """Where a finished run's curves of the whole model are: the run folder, or a layered run's
-    cumulative selection of every layer (RUN/curves/L0+...+Ln)."""
-    if layered is None:
-        return path
-    return layered.path / "curves" / selections(len(layered.levels))[-1][0]
 
 
 def _fscore(report_path: Path) -> dict[int, float] | None:
@@ -78,8 +69,9 @@ class SavedRun:
     error = traceback = None
     alive = False
 
-    def __init__(self, run: RunFolder, views: int, layered: LayeredRun | None = None):
-        """`run`: the finished run folder (a layered run's top layer, given as `layered`)."""
+    def __init__(self, record: RunRecord, views: int):
+        """`record`: a finished run (its top layer is read: its checkpoint holds every layer)."""
+        run = read_run(record.layers()[-1].path)
         log = read_json(run.path / LOG)
         history = log.get("history")
         if not isinstance(history, list) or not isinstance(log.get("detector"), str):
@@ -95,9 +87,8 @@ class SavedRun:
         raster = RasterConfig(kernel=config.model.kernel, k_activation=config.model.k_activation)
         self.info = RunInfo(log["detector"], raster,
                             run.path, config.schedule.epochs, views, self.steps)
-        self.detectors = ({config.layers.layer: log["detector"]} if layered is None
-                          else layer_detectors(layered))
-        self.extraction = read_extraction(curves_folder(run.path, layered), snapshot.step, seconds)
+        self.detectors = layer_detectors(record.layers())
+        self.extraction = read_extraction(record.curves_folder, snapshot.step, seconds)
 
     def series(self) -> np.ndarray:
         """(K, 3) per epoch: training seconds, mean loss, primitives (as the worker's series)."""

@@ -1,5 +1,6 @@
-"""The training thread: builds the run's Trainers (one, or one per layer of a layered run),
-steps them, and publishes immutable snapshots.
+"""The training thread: builds the trainers of a run's layers (`edgedog.train.run.Run.trainers`:
+one per layer, bottom up; a run of one layer has one), steps them, and publishes immutable
+snapshots.
 
 Only this thread calls the trainers' methods. The window reads what it publishes (`latest`,
 `series`, `info`, `error`) and asks for control changes, which this thread applies between two

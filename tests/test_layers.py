@@ -249,6 +249,6 @@ def test_layers_bench_compares_the_stack_with_the_direct_run(builtin_scene_dir, 
                              figure=False)
     assert again["rows"] == results["rows"]
     assert (tmp_path / "direct" / "checkpoint.pt").stat().st_mtime_ns == stamp  # reused, not retrained
-    with pytest.raises(InputError, match="another config or levels"):
+    with pytest.raises(InputError, match="another scene or configuration"):
         run_layers_bench(builtin_scene_dir, tmp_path, "preview", with_settings(config, {"run.seed": 1}),
                          levels, progress=False, figure=False)

@@ -18,7 +18,8 @@ from edgedog.curves.config import ExtractConfig, to_dict
 from edgedog.curves.report import REPORT
 from edgedog.errors import InputError
 from edgedog.scenes import load_scene
-from edgedog.train import layered, lifecycle
+from edgedog.train import lifecycle
+from edgedog.train import run as run_object
 from edgedog.train.config import preset, with_settings
 from edgedog.train.lifecycle import (
     CONTINUE,
@@ -60,12 +61,14 @@ def _plain(value) -> bool:
     return value is None or isinstance(value, (str, int, float, bool, Path))
 
 
-def test_a_plan_writes_nothing_and_is_plain_data(small_box_scene, tmp_path):
+def test_a_plan_writes_nothing_carries_its_scene_and_is_plain_data_besides(small_box_scene, tmp_path):
     out = tmp_path / "run"
     plan = plan_run(out, small_box_scene, "preview", config(), START)
     assert plan.state == NEW and plan.step == 0 and not out.exists()
     assert plan.run.scene_fingerprint and plan.run.scene == load_scene(small_box_scene).root
-    assert _plain(plan) and pickle.loads(pickle.dumps(plan)) == plan
+    assert plan.scene.root == plan.run.scene and len(plan.scene) == len(load_scene(small_box_scene))
+    sent = pickle.loads(pickle.dumps(plan))  # to another process: the scene is loaded there
+    assert sent == plan and sent.scene is None and _plain(sent)
 
 
 def test_plans_of_a_finished_run(finished, small_box_scene):
@@ -144,7 +147,7 @@ def test_finished_means_one_thing(small_box_scene, tmp_path):
     assert plan_run(out, small_box_scene, policy=CONTINUE).state == RESUME
     from edgedog.app import session
 
-    assert session.is_finished is layered.is_finished is lifecycle.is_finished
+    assert session.is_finished is run_object.is_finished is lifecycle.is_finished
 
 
 def _primitives(out: Path) -> bytes:

@@ -12,10 +12,10 @@ from edgedog.app.extraction import export_path
 from edgedog.app.folder_dialog import folder_kind, sub_folders
 from edgedog.app.layers import finest, selection, visible_subset
 from edgedog.app.script import press
-from edgedog.app.session import discard_empty_run
 
 from edgedog.builtin.scene import write_box_scene
 from edgedog.train.config import preset
+from edgedog.train.run import discard_scaffold
 from edgedog.train.run_folder import LOCK_FILE, RunFolder, write_run
 from edgedog.train.trainer import Snapshot
 
@@ -70,13 +70,13 @@ def test_an_aborted_start_leaves_no_folder_but_a_trained_one_stays(tmp_path):
         (folder / "config.json").write_text("{}")
     (layered / "layers.json").write_text("{}")
     (layered / LOCK_FILE).write_text("")
-    discard_empty_run(layered)
+    discard_scaffold(layered)
     assert not layered.exists()
     trained = tmp_path / "trained"
     trained.mkdir()
     (trained / "config.json").write_text("{}")
     (trained / "checkpoint.pt").write_bytes(b"")
-    discard_empty_run(trained)
+    discard_scaffold(trained)
     assert (trained / "checkpoint.pt").is_file() and (trained / "config.json").is_file()
 
 

@@ -9,41 +9,15 @@ import dataclasses
 from pathlib import Path
 
 from edgedog.bench.tables import cell
-from edgedog.errors import InputError
 from edgedog.files import atomic_write_bytes, atomic_write_json, read_json
-from edgedog.scenes import Scene
 from edgedog.settings import with_values
 from edgedog.train.config import TrainConfig
-from edgedog.train.layered import (
-    LayeredRun,
-    continue_layered,
-    extract_layered,
-    is_layered,
-    plan_layered,
-    train_layered,
-    write_layered,
-)
 from edgedog.train.levels import Level
 from edgedog.train.run_folder import RunLock
 
 DIRECT = "direct"
 LAYERS_FILES = ("layers.json", "layers.md", "layers.png")
 """What the bench writes into OUT beside its two runs, its record first."""
-
-
-def layered_run(out: Path, scene_path: Path, preset_name: str, base: TrainConfig,
-                levels: tuple[Level, ...]) -> tuple[LayeredRun, Scene]:
-    """OUT/layered: a new layered run, or the one an earlier bench left (which must match), and
-    the scene at the base resolution."""
-    path = out / "layered"
-    if not is_layered(path):
-        run, scene = plan_layered(path, scene_path, preset_name, base, levels)
-        write_layered(run)
-        return run, scene
-    run, scene = continue_layered(path, scene_path)
-    if (run.preset, run.base, run.levels) != (preset_name, base, levels):
-        raise InputError(run.path, "holds a layered run of another config or levels; choose another --out")
-    return run, scene
 
 
 def _row(name: str, primitives: int, report: dict) -> dict:
@@ -62,12 +36,13 @@ def run_layers_bench(scene_path: Path, out: Path, preset_name: str, base: TrainC
 
 def _layers_bench(scene_path: Path, out: Path, preset_name: str, base: TrainConfig,
                   levels: tuple[Level, ...], progress: bool, figure: bool) -> dict:
-    """`run_layers_bench` under the lock of `out`."""
+    """`run_layers_bench` under the lock of `out`: OUT/layered is a new layered run, or the one
+    an earlier bench left (which must be the same run), and OUT/direct likewise."""
     from edgedog.train.lifecycle import REUSE, execute, plan_run
 
-    run, scene = layered_run(out, scene_path, preset_name, base, levels)
-    train_layered(run, scene, progress=progress)
-    report = extract_layered(run, scene)
+    layered = execute(plan_run(out / "layered", scene_path, preset_name, base, REUSE, levels).check(),
+                      progress=progress)
+    run, scene, report = layered.plan.run, layered.plan.scene, layered.report
     rows = [_row(name, s["primitives"], s) for name, s in report["selections"].items()]
     finest = levels[-1]
     direct_config = with_values(base, {"maps.detector": finest.detector, "maps.floor": finest.floor})

@@ -32,11 +32,10 @@ from edgedog.files import atomic_write_bytes, atomic_write_json, read_json
 from edgedog.settings import with_values
 from edgedog.train.config import TrainConfig, preset, with_epochs, with_overrides
 from edgedog.train.lifecycle import LOG
-from edgedog.train.run_folder import RunLock, write_run
 
 if TYPE_CHECKING:  # torch and the scene loaders load only when a bench runs
     from edgedog.scenes import Scene
-    from edgedog.train.lifecycle import RunPlan
+    from edgedog.train.run import Run
     from edgedog.train.trainer import Trainer
 
 RESULT = "speed_error.json"
@@ -176,12 +175,11 @@ class EvaluatedTraining:
     evals: int
 
     def run(self, job: Job) -> RunOutcome:
-        from edgedog.train.lifecycle import replan
+        from edgedog.train.run import open_run
 
-        with RunLock.acquire(job.plan.run.path):
-            plan = replan(job.plan).check()
-            result = _train_budget(plan, job.spec.row or "", job.spec.seed, self.evals)
-        return _outcome(job, plan.state, plan.step, result)
+        with open_run(job.plan, progress=False) as run:
+            result = _train_budget(run, job.spec.row or "", job.spec.seed, self.evals)
+        return _outcome(job, run.plan.state, run.plan.step, result)
 
     def reuse(self, job: Job) -> RunOutcome | None:
         """The outcome of a run evaluated at every epoch; InputError when its folder holds
@@ -202,33 +200,28 @@ def _outcome(job: Job, state: str, step: int, result: BudgetResult) -> RunOutcom
                       extra=dataclasses.asdict(result))
 
 
-def _train_budget(plan: RunPlan, budget: str, seed: int, evals: int) -> BudgetResult:
-    """Train the run of `plan` (its folder locked), evaluating it at `evals` evenly spaced epochs
-    (those not recorded yet); returns its evaluations."""
-    from edgedog.train.lifecycle import NEW, load_run_scene
-    from edgedog.train.trainer import CHECKPOINT, Trainer
+def _train_budget(run: Run, budget: str, seed: int, evals: int) -> BudgetResult:
+    """Train the open `run`, evaluating it at `evals` evenly spaced epochs (those not recorded
+    yet); returns its evaluations."""
+    from edgedog.train.trainer import CHECKPOINT
 
-    run = plan.run
-    eval_epochs = evaluation_epochs(run.config.schedule.epochs, evals)
+    config = run.plan.run.config
+    eval_epochs = evaluation_epochs(config.schedule.epochs, evals)
     result = read_result(run.path, eval_epochs)
     if result is not None and result.finished:
         return result
-    scene = load_run_scene(run.scene, run.config)
-    if plan.state == NEW:
-        write_run(run)
-    trainer = Trainer(scene, run.config, run.path, progress=False)
     if result is None:
-        camera = scene.camera(0)
-        result = BudgetResult(budget, run.config.schedule.epochs, f"{camera.width}x{camera.height}",
+        camera = run.scene.camera(0)
+        result = BudgetResult(budget, config.schedule.epochs, f"{camera.width}x{camera.height}",
                               eval_epochs, [], seed)
     recorded = {p.epoch for p in result.points}
     for epoch in (e for e in eval_epochs if e not in recorded):
-        if trainer.epoch > epoch:
+        trainer = run.current()  # None: trained to its end before this epoch was evaluated
+        if trainer is None or trainer.epoch > epoch:
             raise InputError(run.path / CHECKPOINT, f"is past epoch {epoch}, which was never "
                                                     f"evaluated; remove {run.path} to train it again")
-        while trainer.epoch < epoch:
-            trainer.step()
-        result.points.append(evaluate(trainer, scene))
+        run.train(until=epoch)
+        result.points.append(evaluate(trainer, run.scene))
         atomic_write_json(run.path / RESULT, dataclasses.asdict(result))
     return result
 

@@ -97,9 +97,10 @@ def window_schedule(total_steps: int, windows: int, window_steps: int):
     return schedule(wait=cycle - window_steps - 1, warmup=1, active=window_steps, repeat=windows)
 
 
-def profile_training(trainer, windows: int, window_steps: int) -> StepProfile:
-    """Train `trainer` to its end, recording `windows` windows of `window_steps` steps; writes
-    the run's outputs as `Trainer.run` does."""
+def profile_training(run, windows: int, window_steps: int) -> StepProfile:
+    """Train the open run (`edgedog.train.run.Run`) of one layer to its end, recording `windows`
+    windows of `window_steps` steps, then write its outputs as `edgedog train` does."""
+    trainer = run.current()
     total = trainer.total_steps - trainer.step_index
     result = StepProfile(total_steps=total)
     with warnings.catch_warnings(), profile(
@@ -110,7 +111,7 @@ def profile_training(trainer, windows: int, window_steps: int) -> StepProfile:
         while not trainer.done:
             trainer.step()
             prof.step()
-    trainer.write_outputs()
+    run.train()  # the layer is at its end: this writes its outputs, outside the recorded windows
     result.train_seconds = trainer.seconds
     return result
 
@@ -119,20 +120,17 @@ def run_steps_bench(scene_path: Path, out: Path, preset_name: str, config: Train
                     window_steps: int, progress: bool = True) -> StepProfile:
     """Train `config` on the scene into OUT/run (a new folder) with the profiler's windows, and
     write OUT/steps.json and OUT/steps.md."""
-    from edgedog.train.lifecycle import START, load_run_scene, plan_run
-    from edgedog.train.run_folder import RunLock, write_run
-    from edgedog.train.trainer import Trainer
+    from edgedog.train.lifecycle import START, plan_run
+    from edgedog.train.run import open_run
+    from edgedog.train.run_folder import RunLock
 
     plan = plan_run(out / "run", scene_path, preset_name, config, START).check()
-    scene = load_run_scene(scene_path, config)
-    with RunLock.acquire(out), RunLock.acquire(plan.run.path):
-        write_run(plan.run)
-        trainer = Trainer(scene, config, plan.run.path, progress=progress)
-        result = profile_training(trainer, windows, window_steps)
-        camera = scene.camera(0)
-        summary = {"scene": str(scene.root), "preset": preset_name, "views": len(scene),
+    with RunLock.acquire(out), open_run(plan, progress) as run:
+        result = profile_training(run, windows, window_steps)
+        camera = run.scene.camera(0)
+        summary = {"scene": str(run.scene.root), "preset": preset_name, "views": len(run.scene),
                    "size": [camera.width, camera.height], "threads": torch.get_num_threads(),
-                   "final_primitives": len(trainer.model), **result.to_dict()}
+                   "final_primitives": len(run.trainer.model), **result.to_dict()}
         atomic_write_json(out / STEPS_FILES[0], summary)
         atomic_write_bytes(out / STEPS_FILES[1], markdown(summary).encode())
     return result

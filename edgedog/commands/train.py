@@ -52,16 +52,24 @@ def resume_hint(args: argparse.Namespace) -> str:
 
 
 def run(args: argparse.Namespace) -> None:
-    from edgedog.train.layered import is_layered
+    """Plan the run (a new one, layered with --layers, or the one in --out with --resume), train
+    it, extract its curves and print what it did."""
+    from edgedog.train.levels import resolve_levels
     from edgedog.train.lifecycle import CONTINUE, START, plan_run
 
-    if args.layers is not None or is_layered(args.out):
-        return run_layered(args)
     if args.resume:
+        if args.layers is not None:
+            raise InputError(args.out, "--resume continues the run with its own layers; drop --layers")
         reject_settings_on_resume(args)
         plan = plan_run(args.out, args.scene, policy=CONTINUE)
     else:
-        plan = plan_run(args.out, args.scene, args.preset or DEFAULT_PRESET, _config(args), START)
+        levels = ()
+        if args.layers is not None:
+            names = [name.strip() for name in args.layers.split(",") if name.strip()]
+            if not names:
+                raise InputError(args.out, f"--layers {args.layers!r}: name at least one layer, e.g. L0,L1")
+            levels = resolve_levels(names, args.levels)
+        plan = plan_run(args.out, args.scene, args.preset or DEFAULT_PRESET, _config(args), START, levels)
     train_and_report(plan, args.quiet)
 
 
@@ -88,64 +96,25 @@ def reject_settings_on_resume(args: argparse.Namespace) -> None:
 
 
 def train_and_report(plan, quiet: bool) -> None:
-    """Execute `plan` (a new run, or one continued from its checkpoint), print where it starts,
-    its training and its curves."""
+    """Execute `plan` (a new run, or one continued from its checkpoints), print where each layer
+    starts, its training and its curves."""
+    from edgedog.train.layers import layer_name
     from edgedog.train.lifecycle import execute
 
     def announce(trainer) -> None:
-        print(json.dumps({"detector": trainer.detector, "init": trainer.init_report.get("method"),
-                          "initial_primitives": trainer.initial_count,
+        print(json.dumps({"layer": layer_name(trainer.config.layers.layer), "detector": trainer.detector,
+                          "floor": trainer.config.maps.floor, "init": trainer.init_report.get("method"),
+                          "lower_primitives": len(trainer.lower), "initial_primitives": trainer.initial_count,
                           "resumed_at_step": trainer.step_index}))
         for path, problem in trainer.scene.skipped.items():
             print(f"skipped the view of {path}: {problem}")
 
     result = execute(plan.check(), progress=not quiet, on_trainer=announce)
-    log = result.log
-    print(f"trained {log['final_primitives']} primitives (from {log['initial_primitives']}) in "
-          f"{log['train_seconds']} s")
-    print_report(result.report)
-    print(f"outputs in {plan.run.path}")
-
-
-def run_layered(args: argparse.Namespace) -> None:
-    """`--layers`: progressive training of the levels, then curves per layer and cumulative."""
-    from edgedog.train.layered import continue_layered, plan_layered, write_layered
-    from edgedog.train.levels import resolve_levels
-    from edgedog.train.run_folder import RunLock, check_new_run_folder
-
-    if args.resume:
-        if args.layers is not None:
-            raise InputError(args.out, "--resume continues the layered run with its own layers; "
-                                       "drop --layers")
-        reject_settings_on_resume(args)
-        run, scene = continue_layered(args.out, args.scene)
+    if "selections" in result.report:
+        print_layers_report(result.report)
     else:
-        names = [name.strip() for name in (args.layers or "").split(",") if name.strip()]
-        if not names:
-            raise InputError(args.out, f"--layers {args.layers!r}: name at least one layer, e.g. L0,L1")
-        run, scene = plan_layered(args.out, args.scene, args.preset or DEFAULT_PRESET, _config(args),
-                                  resolve_levels(names, args.levels))
-    with RunLock.acquire(args.out):
-        if not args.resume:
-            check_new_run_folder(args.out)
-            write_layered(run)
-
-        def announce(index, trainer) -> None:
-            level = run.levels[index]
-            print(json.dumps({"layer": level.name, "maps": trainer.detector, "floor": level.floor,
-                              "lower_primitives": len(trainer.lower),
-                              "initial_primitives": trainer.initial_count,
-                              "resumed_at_step": trainer.step_index}))
-
-        train_layered_and_report(run, scene, progress=not args.quiet, on_layer=announce)
-
-
-def train_layered_and_report(run, scene, progress: bool, on_layer=None) -> dict:
-    """Train a layered run, extract every selection and print the table."""
-    from edgedog.train.layered import extract_layered, train_layered
-
-    train_layered(run, scene, progress=progress, on_layer=on_layer)
-    report = extract_layered(run, scene)
-    print_layers_report(report)
-    print(f"outputs in {run.path}")
-    return report
+        log = result.log
+        print(f"trained {log['final_primitives']} primitives (from {log['initial_primitives']}) in "
+              f"{log['train_seconds']} s")
+        print_report(result.report)
+    print(f"outputs in {plan.run.path}")

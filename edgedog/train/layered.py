@@ -1,4 +1,4 @@
-"""A layered run folder: progressive training of the levels, and per-layer / cumulative curves.
+"""A layered run folder: the record of a stack of layers, and its per-layer / cumulative curves.
 
 Layout of RUN (each layer folder is an ordinary run folder, so `edgedog extract`, `export`,
 `studio` and `--resume` work on it; its primitives.ply holds the layers below it too):
@@ -8,15 +8,17 @@ Layout of RUN (each layer folder is an ordinary run folder, so `edgedog extract`
     RUN/curves/L1/              curves of layer L1's own primitives
     RUN/curves/L0+L1/           curves of the cumulative model up to L1
     RUN/layers_report.json      counts and scores of every selection
+
+A `LayeredRun` answers what a `RunFolder` answers (path, scene, preset, config, fingerprints,
+`layers()`, `curves_folder`, `report_file`, `extract()`, `write()`), so a caller holding either
+holds a stack of layers: a run folder is a stack of one. `edgedog.train.run` trains them.
 """
 
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 from edgedog.curves.config import ExtractConfig
 from edgedog.edges.cache import attach_edge_maps
@@ -26,12 +28,8 @@ from edgedog.primitives import read_ply
 from edgedog.scenes import Scene
 from edgedog.settings import with_values
 from edgedog.train.config import DEFAULT_PRESET, PRESETS_RENAMED, TrainConfig, from_dict, is_flat, to_dict
-from edgedog.train.levels import Level, check_level_maps
-from edgedog.train.lifecycle import check_scene_of_run, fingerprint, is_finished, load_run_scene
-from edgedog.train.run_folder import RUN_CONFIG, RunFolder, check_new_run_folder, write_run
-
-if TYPE_CHECKING:
-    from edgedog.train.trainer import Trainer
+from edgedog.train.levels import Level
+from edgedog.train.run_folder import LOG, RunFolder
 
 LAYERS_FILE = "layers.json"
 REPORT = "layers_report.json"
@@ -40,8 +38,9 @@ REPORT = "layers_report.json"
 @dataclass(frozen=True)
 class LayeredRun:
     """path: the layered run folder; scene: the scene folder; preset: the preset named;
-    base: the config every layer starts from; levels: bottom first; scene_fingerprint: of the
-    scene trained on (None in layered runs written before it was recorded)."""
+    base: the config every layer starts from; levels: bottom first; scene_fingerprint,
+    maps_fingerprint: of the scene trained on, as a `RunFolder`'s (None in layered runs written
+    before they were recorded)."""
 
     path: Path
     scene: Path
@@ -49,6 +48,17 @@ class LayeredRun:
     base: TrainConfig
     levels: tuple[Level, ...]
     scene_fingerprint: str | None = None
+    maps_fingerprint: str | None = None
+
+    @property
+    def config(self) -> TrainConfig:
+        """The base config (a run folder's `config`): every layer's but for its maps."""
+        return self.base
+
+    @property
+    def curves_folder(self) -> Path:
+        """Where the curves of the whole model are: the cumulative selection of every layer."""
+        return self.path / "curves" / selections(len(self.levels))[-1][0]
 
     def layer_dir(self, index: int) -> Path:
         return self.path / self.levels[index].name
@@ -58,6 +68,25 @@ class LayeredRun:
         return with_values(self.base, {"maps.detector": level.detector, "maps.floor": level.floor,
                                        "layers.layer": index})
 
+    def layers(self) -> tuple[RunFolder, ...]:
+        """The run folder of each layer, bottom first, with its level's maps."""
+        return tuple(RunFolder(self.layer_dir(index), self.scene, self.preset, self.layer_config(index),
+                               self.scene_fingerprint, self.maps_fingerprint)
+                     for index in range(len(self.levels)))
+
+    @property
+    def report_file(self) -> Path:
+        """The extraction's report: every selection's (layers_report.json)."""
+        return self.path / REPORT
+
+    def extract(self, scene: Scene) -> dict:
+        """Extract every selection (`extract_layered`); returns the report."""
+        return extract_layered(self, scene)
+
+    def write(self) -> None:
+        """Write layers.json (the layers' config.json are written as each starts)."""
+        write_layered(self)
+
 
 def is_layered(path: Path) -> bool:
     return (Path(path) / LAYERS_FILE).is_file()
@@ -65,7 +94,8 @@ def is_layered(path: Path) -> bool:
 
 def write_layered(run: LayeredRun) -> None:
     atomic_write_json(run.path / LAYERS_FILE, {
-        "scene": str(run.scene), "scene_fingerprint": run.scene_fingerprint, "preset": run.preset,
+        "scene": str(run.scene), "scene_fingerprint": run.scene_fingerprint,
+        "maps_fingerprint": run.maps_fingerprint, "preset": run.preset,
         "config": to_dict(run.base), "levels": [dataclasses.asdict(level) for level in run.levels]})
 
 
@@ -77,67 +107,11 @@ def read_layered(path: Path) -> LayeredRun:
     preset = data.get("preset", DEFAULT_PRESET)
     if is_flat(data["config"]):  # written before the sections, when 'paper' named today's 'full'
         preset = PRESETS_RENAMED.get(preset, preset)
-    recorded = data.get("scene_fingerprint")
-    if not isinstance(recorded, str | None):
-        raise InputError(Path(path) / LAYERS_FILE, f"'scene_fingerprint' must be a string, got {recorded!r}")
-    return LayeredRun(Path(path), Path(data["scene"]), preset, from_dict(data["config"]), levels, recorded)
-
-
-def plan_layered(out: Path, scene_path: Path, preset: str, base: TrainConfig,
-                 levels: tuple[Level, ...]) -> tuple[LayeredRun, Scene]:
-    """A new layered run of `levels` in `out` (a new or empty folder) and its scene at the base
-    resolution, checked as `lifecycle.plan_run` checks a run's (the maps of every level, readable
-    views); writes nothing."""
-    if is_layered(out):
-        raise InputError(out, "already holds a layered run; pass --resume to continue it, or choose "
-                              "another --out")
-    check_new_run_folder(out)
-    scene = load_run_scene(scene_path, base)
-    check_level_maps(levels, scene.detectors)
-    return LayeredRun(Path(out), scene.root, preset, base, levels, fingerprint(scene)), scene
-
-
-def continue_layered(out: Path, scene_path: Path) -> tuple[LayeredRun, Scene]:
-    """The layered run in `out` and `scene_path` loaded at its resolution, which must be the scene
-    it trained on (by fingerprint, or by folder for runs that recorded none)."""
-    if not is_layered(out):
-        raise InputError(out, "no layered run to resume (layers.json is missing)")
-    run = read_layered(out)
-    scene = load_run_scene(scene_path, run.base)
-    check_scene_of_run(run.path, run.scene, run.scene_fingerprint, scene)
-    return run, scene
-
-
-def layer_trainers(run: LayeredRun, scene: Scene, progress: bool = True) -> Iterator[Trainer]:
-    """The trainers of the unfinished layers, bottom up, each built once the layers below it are
-    trained (finished layers are reused: a layer's checkpoint holds the whole stack up to it; an
-    interrupted one resumes). The caller trains each trainer before asking for the next.
-
-    Args:
-        scene: loaded at the base config's resolution.
-    """
-    from edgedog.train.trainer import Trainer, read_stack
-
-    lower = None
-    for index in range(len(run.levels)):
-        folder, config = run.layer_dir(index), run.layer_config(index)
-        if is_finished(folder):
-            lower = read_stack(folder)
-            continue
-        if not (folder / RUN_CONFIG).is_file():
-            write_run(RunFolder(folder, run.scene, run.preset, config, run.scene_fingerprint))
-        trainer = Trainer(scene, config, folder, progress=progress, lower=lower)
-        yield trainer
-        lower = trainer.stack()
-
-
-def train_layered(run: LayeredRun, scene: Scene, progress: bool = True, on_layer=None) -> None:
-    """Train the levels bottom up, each layer on its maps with the layers below fixed
-    (`layer_trainers`); `on_layer` is called with (index, trainer) before each layer trains."""
-    for trainer in layer_trainers(run, scene, progress):
-        if on_layer is not None:
-            on_layer(trainer.config.layers.layer, trainer)
-        trainer.run()
+    recorded = data.get("scene_fingerprint"), data.get("maps_fingerprint")
+    for name, value in zip(("scene_fingerprint", "maps_fingerprint"), recorded):
+        if not isinstance(value, str | None):
+            raise InputError(Path(path) / LAYERS_FILE, f"'{name}' must be a string, got {value!r}")
+    return LayeredRun(Path(path), Path(data["scene"]), preset, from_dict(data["config"]), levels, *recorded)
 
 
 def selections(count: int) -> list[tuple[str, set[int]]]:
@@ -163,7 +137,7 @@ def extract_layered(run: LayeredRun, scene: Scene, config: ExtractConfig = Extra
     report = {"levels": [dataclasses.asdict(level) for level in run.levels], "selections": {}}
     for name, layers in selections(len(run.levels)):
         finest = run.layer_dir(max(layers))
-        detector = read_json(finest / "log.json")["detector"]
+        detector = read_json(finest / LOG)["detector"]
         attach_edge_maps(scene, detector)
         _, selection = extract_with_report(top, scene, detector, config, layers, run.path / "curves" / name)
         selection["primitives"] = int(sum((counts == i).sum() for i in layers))

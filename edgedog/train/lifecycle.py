@@ -2,10 +2,13 @@
 
 `plan_run` reads a run folder and the scene and decides, writing nothing, what a run there does:
 start anew (NEW), continue from its checkpoint's step (RESUME), be reused as it is (FINISHED), or
-nothing, for a reason (REFUSED). A `RunPlan` is plain data (paths, numbers, strings and a frozen
-config), so one process may plan and another execute. `execute` takes the folder's lock, checks
-the folder again under it, trains what is left, and extracts the curves when their report is
-missing.
+nothing, for a reason (REFUSED). A run is a stack of layers (`RunPlan.run.layers()`): a run folder
+is a stack of one, a layered run (`edgedog.train.layered`) one of several. A `RunPlan` carries the
+scene it loaded, so the scene is loaded and fingerprinted once; the rest of it is plain data
+(paths, numbers, strings and frozen configs), and a pickled plan leaves the scene behind, so one
+process may plan and another execute. `edgedog.train.run.open_run` executes a plan: it takes the
+folder's lock, checks the folder again under it and returns the run object that trains the layers
+and extracts the curves; `execute` does all of it in one call.
 
 "Finished" means one thing to every caller (`is_finished`): the folder's log.json records the
 training of the folder's own configuration to its last epoch. What each caller may do with a
@@ -18,30 +21,34 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 from edgedog.errors import ConfigError, InputError
 from edgedog.files import read_json
+from edgedog.scenes import Scene
 from edgedog.train.config import DEFAULT_PRESET, TrainConfig, for_detector, from_dict
+from edgedog.train.layered import LayeredRun, is_layered, read_layered
+from edgedog.train.levels import Level, check_level_maps
 from edgedog.train.memory import check_memory
 from edgedog.train.run_folder import (
+    LOG,
     RUN_CONFIG,
     RunFolder,
-    RunLock,
     check_new_run_folder,
-    check_same_run,
+    differ,
+    is_run_folder,
     read_run,
-    write_run,
 )
 
-if TYPE_CHECKING:  # torch and the scene loaders load only when a run is planned
-    from edgedog.scenes import Scene
+if TYPE_CHECKING:  # torch loads only when a run trains
     from edgedog.train.trainer import Trainer
 
-LOG = "log.json"
-"""Written by the trainer at its end (and by the speed bench at each evaluation)."""
+RunRecord = RunFolder | LayeredRun
+"""What a run folder records of its run: config.json's run of one layer, or layers.json's
+layered run. Both answer the same questions (path, scene, preset, config, fingerprints,
+`layers()`, `curves_folder`, `report_file`, `extract()`, `write()`)."""
 
 NEW, RESUME, FINISHED, REFUSED = "new", "resume", "finished", "refused"
 START, CONTINUE, REUSE = "start", "continue", "reuse"
@@ -52,27 +59,37 @@ POLICIES = (START, CONTINUE, REUSE)
 class RunPlan:
     """What executing a run does.
 
-    run: the run (folder, scene, preset, effective config, scene fingerprint);
+    run: the run's record (folder, scene, preset, effective config, scene fingerprint; a layered
+        run's levels), whose `layers()` are the run folders trained, bottom first;
     policy: START, CONTINUE or REUSE; state: NEW, RESUME, FINISHED or REFUSED;
-    step: where training starts (RESUME: the checkpoint's step; FINISHED: the last step);
-    extracted: whether the curves' report is there and current (`has_current_report`; a FINISHED run
-        is extracted, again, only when not);
-    refused_path, reason: for REFUSED, the error `check` raises (`InputError(refused_path, reason)`).
+    step: where training starts in the lowest layer left (RESUME: its checkpoint's step;
+        FINISHED: the top layer's last step);
+    extracted: whether the curves' report is there (and, for a run of one layer, current:
+        `has_current_report`; a FINISHED run is extracted, again, only when not);
+    refused_path, reason: for REFUSED, the error `check` raises (`InputError(refused_path, reason)`);
+    scene: the scene at the run's resolution as `plan_run` loaded it (`load_run_scene`); None in a
+        refused plan and in a plan unpickled in another process (`open_run` loads it there).
     """
 
-    run: RunFolder
+    run: RunRecord
     policy: str
     state: str
     step: int = 0
     extracted: bool = False
     refused_path: Path | None = None
     reason: str = ""
+    scene: Scene | None = field(default=None, compare=False, repr=False)
 
     def check(self) -> RunPlan:
         """This plan, unless it is refused: then the InputError saying why."""
         if self.state == REFUSED:
             raise InputError(self.refused_path, self.reason)
         return self
+
+    def __getstate__(self) -> dict:
+        """Pickled without the scene (its images stay where they are; the executing process
+        loads it again)."""
+        return {**self.__dict__, "scene": None}
 
 
 @dataclass(frozen=True)
@@ -169,116 +186,145 @@ def _checkpoint_step(path: Path) -> int:
     return step
 
 
-def _check_continuable(path: Path) -> None:
+def holds_run(path: Path) -> bool:
+    """Whether `path` records a run: a layered run's layers.json, or a config.json of ours."""
+    return is_layered(path) or is_run_folder(path)
+
+
+def read_record(path: Path) -> RunRecord:
+    """The run a folder records: a layered run (layers.json), else a run of one layer
+    (config.json); one InputError naming the folder when it holds neither."""
     if not path.is_dir():
         raise InputError(path, "run folder not found; nothing to resume")
+    if is_layered(path):
+        return read_layered(path)
     if not (path / RUN_CONFIG).is_file():
         raise InputError(path, "is not an edgedog run folder (no config.json of ours); nothing to resume")
+    return read_run(path)
 
 
-def _folder_plan(run: RunFolder, policy: str) -> RunPlan:
+def _check_same_record(run: RunRecord) -> None:
+    """REUSE: the folder holds this very run (the same scene, layer by layer the same folders and
+    configurations, and fingerprints that do not tell the scenes apart), or nothing at all; a
+    benchmark never mixes two runs in one folder."""
+    if not holds_run(run.path):
+        check_new_run_folder(run.path)
+        return
+    existing = read_record(run.path)
+    if existing.scene != run.scene or _layer_configs(existing) != _layer_configs(run):
+        raise InputError(run.path, "holds a run of another scene or configuration; choose another --out")
+    if differ(existing.scene_fingerprint, run.scene_fingerprint):
+        raise InputError(run.path, "holds a run of this scene as it was before its cameras or images "
+                                   "changed; choose another --out")
+    if differ(existing.maps_fingerprint, run.maps_fingerprint):
+        raise InputError(run.path, "holds a run of this scene as it was before its edge maps or masks "
+                                   "changed; choose another --out")
+
+
+def _layer_configs(run: RunRecord) -> list[tuple[Path, TrainConfig]]:
+    return [(layer.path, layer.config) for layer in run.layers()]
+
+
+def _folder_plan(run: RunRecord, policy: str, scene: Scene | None = None) -> RunPlan:
     """The plan from the folder alone (no scene read): `run` is the run to make (START, REUSE)
-    or the one read from the folder (CONTINUE)."""
+    or the one read from the folder (CONTINUE); `scene` is carried as it is."""
     from edgedog.curves.report import has_current_report
 
     path = run.path
     if policy == START:
+        if holds_run(path):
+            raise InputError(path, "already holds a run; pass --resume to continue it, or choose another "
+                                   "folder")
         check_new_run_folder(path)
-        return RunPlan(run, policy, NEW)
+        return RunPlan(run, policy, NEW, scene=scene)
     if policy == CONTINUE:
-        _check_continuable(path)
+        read_record(path)
     elif policy == REUSE:
-        check_same_run(run)
-        if not (path / RUN_CONFIG).is_file():
-            return RunPlan(run, policy, NEW)
+        _check_same_record(run)
+        if not holds_run(path):
+            return RunPlan(run, policy, NEW, scene=scene)
     else:
         raise ValueError(f"no run policy {policy!r}; one of {POLICIES}")
-    extracted = has_current_report(path)
-    if is_finished(path):
-        return RunPlan(run, policy, FINISHED, _checkpoint_step(path), extracted)
-    return RunPlan(run, policy, RESUME, _checkpoint_step(path), extracted)
+    layers = [layer.path for layer in run.layers()]
+    left = [layer for layer in layers if not is_finished(layer)]
+    extracted = has_current_report(run.curves_folder) and run.report_file.is_file()
+    state = RESUME if left else FINISHED
+    return RunPlan(run, policy, state, _checkpoint_step((left or layers[-1:])[0]), extracted, scene=scene)
 
 
-def _refused(run: RunFolder, policy: str, error: InputError) -> RunPlan:
+def _refused(run: RunRecord, policy: str, error: InputError) -> RunPlan:
     return RunPlan(run, policy, REFUSED, refused_path=error.path, reason=error.problem)
 
 
-def plan_run(out: Path, scene: str | Path, preset: str = DEFAULT_PRESET, config: TrainConfig | None = None,
-             policy: str = START) -> RunPlan:
-    """What a run of `config` (preset `preset`) on `scene` in `out` would do under `policy`;
-    with CONTINUE, the run's own scene record, preset and config are the folder's (`config` is
-    ignored) and `scene` must be the scene it trained on. Writes nothing.
+def plan_run(out: Path, scene: str | Path | Scene, preset: str = DEFAULT_PRESET,
+             config: TrainConfig | None = None, policy: str = START, levels: tuple[Level, ...] = ()
+             ) -> RunPlan:
+    """What a run of `config` (preset `preset`) on `scene` in `out` would do under `policy`:
+    a run of one layer, or, with `levels`, a layered run (a run folder per level, bottom first).
+    With CONTINUE, the run's own scene record, preset, config and levels are the folder's
+    (`config` and `levels` are ignored) and `scene` must be the scene it trained on. Writes
+    nothing; the plan carries the scene it loaded.
+
+    Args:
+        scene: the scene folder, or the scene already loaded at the run's resolution by
+            `load_run_scene` (the studio keeps its scenes loaded).
 
     A folder the policy does not allow, or a scene that cannot be trained, gives a REFUSED plan
-    (`RunPlan.check` raises its error); ConfigErrors (e.g. an unknown detector) are raised.
+    (`RunPlan.check` raises its error); ConfigErrors (e.g. an unknown detector, a level whose maps
+    cannot be had) are raised.
     """
     out = Path(out)
-    pending = RunFolder(out, Path(scene), preset, config if config is not None else TrainConfig())
+    folder = scene.root if isinstance(scene, Scene) else Path(scene)
+    config = config if config is not None else TrainConfig()
+    pending = (LayeredRun(out, folder, preset, config, tuple(levels)) if levels
+               else RunFolder(out, folder, preset, config))
     try:
         if policy == CONTINUE:
-            _check_continuable(out)
-            run = read_run(out)
-            check_scene_of_run(run.path, run.scene, run.scene_fingerprint, load_run_scene(scene, run.config),
-                               run.maps_fingerprint)
-            return _folder_plan(run, policy)
+            run = read_record(out)
+            loaded = _loaded(scene, run.config)
+            check_scene_of_run(run.path, run.scene, run.scene_fingerprint, loaded, run.maps_fingerprint)
+            return _folder_plan(run, policy, loaded)
         if policy == START:
             _folder_plan(pending, policy)  # a refused folder is reported before the scene is read
-        loaded = load_run_scene(scene, pending.config)
+        loaded = _loaded(scene, config)
+        check_level_maps(tuple(levels), loaded.detectors)
         run = dataclasses.replace(pending, scene=loaded.root, scene_fingerprint=fingerprint(loaded),
                                   maps_fingerprint=maps_fingerprint(loaded))
-        return _folder_plan(run, policy)
+        return _folder_plan(run, policy, loaded)
     except InputError as error:
         return _refused(pending, policy, error)
 
 
+def _loaded(scene: str | Path | Scene, config: TrainConfig) -> Scene:
+    return scene if isinstance(scene, Scene) else load_run_scene(scene, config)
+
+
 def replan(plan: RunPlan) -> RunPlan:
-    """`plan` with its folder read again (no scene read): for a writer holding the folder's lock,
-    as another process may have started or finished a run there since it was planned."""
+    """`plan` with its folder read again (no scene read; its scene carried over): for a writer
+    holding the folder's lock, as another process may have started or finished a run there
+    since it was planned."""
     try:
-        return _folder_plan(plan.check().run, plan.policy)
+        return _folder_plan(plan.check().run, plan.policy, plan.scene)
     except InputError as error:
         return _refused(plan.run, plan.policy, error)
 
 
 def execute(plan: RunPlan, scene: Scene | None = None, progress: bool = True,
             on_trainer: Callable[[Trainer], None] | None = None) -> RunResult:
-    """Carry out `plan` under the folder's lock: write config.json (NEW), train what is left
-    (NEW, RESUME; CONTINUE loads a FINISHED run too, and rewrites its outputs), and extract the
-    curves when a trainer ran or their report is missing.
+    """Carry out `plan` in one call: open the run (`edgedog.train.run.open_run`: the folder's lock,
+    the folder checked again), train every layer left to its end, extract the curves when a
+    layer trained or their report is missing, and close the run.
 
     Args:
-        scene: the run's scene at its resolution, when the caller has it loaded (else loaded here).
-        on_trainer: called with the trainer before it trains (e.g. to print where it starts).
+        scene: the run's scene at its resolution, for a plan that does not carry it (else loaded).
+        on_trainer: called with each layer's trainer before it trains (e.g. to print where it starts).
     Raises:
         InputError: the plan is refused, or the folder changed since it was planned.
     """
-    from edgedog.curves.report import REPORT, extract_with_report
-    from edgedog.train.trainer import Trainer
+    from edgedog.train.run import open_run  # the run object is built on these plans
 
-    run = plan.check().run
-    made = not run.path.exists()
-    with RunLock.acquire(run.path) as lock:
-        try:
-            current = replan(plan).check()
-            if scene is None:
-                scene = load_run_scene(run.scene, run.config)
-            # --resume of a finished run loads it all the same: its checkpoint is checked, its outputs
-            # written again (no step is left to train).
-            trained = current.state != FINISHED or plan.policy == CONTINUE
-            trainer = Trainer(scene, run.config, run.path, progress=progress) if trained else None
-            if current.state == NEW:
-                write_run(run)
-        except BaseException:
-            if plan.state == NEW:  # refused before training: leave the folder as it was
-                lock.discard(remove_folder=made)
-            raise
-        if trainer is not None:
-            if on_trainer is not None:
-                on_trainer(trainer)
-            trainer.run()
-        log = read_json(run.path / LOG)
-        if trained or not current.extracted:
-            report = extract_with_report(run.path, scene, log["detector"])[1]
-        else:
-            report = read_json(run.path / REPORT)
-    return RunResult(current, log, report)
+    if scene is not None and plan.scene is None:
+        plan = dataclasses.replace(plan, scene=scene)
+    with open_run(plan, progress) as run:
+        run.train(on_trainer=on_trainer)
+        return run.finish()

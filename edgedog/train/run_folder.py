@@ -17,12 +17,18 @@ import json
 import os
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from edgedog.errors import ConfigError, InputError, OutputError
 from edgedog.files import atomic_write_json, create_folder, read_json, remove_stale_temporaries
 from edgedog.train.config import DEFAULT_PRESET, PRESETS_RENAMED, TrainConfig, from_dict, to_dict
 
+if TYPE_CHECKING:
+    from edgedog.scenes import Scene
+
 RUN_CONFIG = "config.json"
+LOG = "log.json"
+"""Written by the trainer at its end (and by the speed bench at each evaluation)."""
 LOCK_FILE = ".edgedog.lock"
 RUN_FORMAT = "edgedog-run"
 RUN_VERSION = 3
@@ -46,6 +52,34 @@ class RunFolder:
     config: TrainConfig
     scene_fingerprint: str | None = None
     maps_fingerprint: str | None = None
+
+    @property
+    def curves_folder(self) -> Path:
+        """Where the curves of the whole model are: the run folder."""
+        return self.path
+
+    @property
+    def report_file(self) -> Path:
+        """The extraction's report (extract.json, with scores when the scene has ground truth)."""
+        from edgedog.curves.report import REPORT
+
+        return self.path / REPORT
+
+    def extract(self, scene: Scene) -> dict:
+        """Extract the curves of the trained run into its folder with the maps it was fitted to;
+        returns the report (also written to `report_file`)."""
+        from edgedog.curves.report import extract_with_report
+
+        return extract_with_report(self.path, scene, read_json(self.path / LOG)["detector"])[1]
+
+    def layers(self) -> tuple[RunFolder, ...]:
+        """The run folder of each layer, bottom first: a run folder is a stack of one layer
+        (`edgedog.train.layered.LayeredRun` is one of several)."""
+        return (self,)
+
+    def write(self) -> None:
+        """Write config.json (`write_run`)."""
+        write_run(self)
 
 
 def _run_config_data(path: Path) -> dict | None:
@@ -149,26 +183,8 @@ def check_new_run_folder(path: Path) -> None:
 
 def config_digest(config: TrainConfig) -> str:
     """Eight hex digits naming a configuration: a default run folder named with them never meets a
-    run that another version's defaults made (it would be refused by `check_same_run`)."""
+    run that another version's defaults made (a reused folder must hold the very same run)."""
     return hashlib.sha256(json.dumps(to_dict(config), sort_keys=True).encode()).hexdigest()[:8]
-
-
-def check_same_run(run: RunFolder) -> None:
-    """A run folder already there (from an earlier bench or demo) must hold this very run: same scene and
-    configuration; a benchmark never mixes two runs in one folder. A folder that is not a run must be
-    empty."""
-    if is_run_folder(run.path):
-        existing = read_run(run.path)
-        if existing.config != run.config or existing.scene != run.scene:
-            raise InputError(run.path, "holds a run of another scene or configuration; choose another --out")
-        if differ(existing.scene_fingerprint, run.scene_fingerprint):
-            raise InputError(run.path, "holds a run of this scene as it was before its cameras or images "
-                                       "changed; choose another --out")
-        if differ(existing.maps_fingerprint, run.maps_fingerprint):
-            raise InputError(run.path, "holds a run of this scene as it was before its edge maps or masks "
-                                       "changed; choose another --out")
-    else:
-        check_new_run_folder(run.path)
 
 
 def differ(recorded: str | None, current: str | None) -> bool:
