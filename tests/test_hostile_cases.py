@@ -607,7 +607,10 @@ REPORT_ROWS = [
         words=[CFG, "'config'"]),
     row("CFG-cfg_version99", *RESUME, prep=config_edit(lambda data: data.__setitem__("version", 99)),
         words=[CFG, "version 99"]),
-    row("CFG-cfg_scene_etc", *RESUME, prep=config_edit(lambda data: data.__setitem__("scene", "/etc"))),
+    # The run resumes on the scene passed, whose fingerprint is the recorded one (as RES-moved): the
+    # folder recorded, /etc, is never read.
+    row("CFG-cfg_scene_etc", *RESUME, prep=config_edit(lambda data: data.__setitem__("scene", "/etc")), rc=0,
+        rewrites=["run/log.json"]),
     row("CFG-cfg_init_huge", *RESUME, prep=settings("init", "count", 10**10), words=[CFG, "init.count"]),
     row("CFG-cfg_downscale0", *RESUME, prep=settings("maps", "downscale", 0), words=[CFG, "maps.downscale"]),
     row("CFG-cfg_unknown", *RESUME, prep=config_edit(lambda data: data["config"].__setitem__("unknown_x",
