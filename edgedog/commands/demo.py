@@ -30,7 +30,7 @@ def add_parser(subparsers) -> None:
 
 def run(args: argparse.Namespace) -> None:
     from edgedog.train.config import preset
-    from edgedog.train.lifecycle import FINISHED, REUSE, execute, load_run_scene, plan_run
+    from edgedog.train.lifecycle import FINISHED, REUSE, execute, plan_run
     from edgedog.train.run_folder import config_digest
 
     start = time.perf_counter()
@@ -43,10 +43,9 @@ def run(args: argparse.Namespace) -> None:
     plan = plan_run(out, folder, "preview", config, REUSE).check()
     if plan.state == FINISHED:
         print(f"reusing the finished demo run in {out}")
-    scene = load_run_scene(folder, config)
-    result = execute(plan, scene, progress=not args.quiet)
+    result = execute(plan, progress=not args.quiet)  # on the scene the plan loaded
     log, report = result.log, result.report
-    print(f"scene      {folder} ({len(scene)} views, {log['detector']} edge maps; "
+    print(f"scene      {folder} ({len(plan.scene)} views, {log['detector']} edge maps; "
           f"ready in {generated:.1f} s)")
     print(f"trained    {log['final_primitives']} primitives (from {log['initial_primitives']}) "
           f"in {log['train_seconds']:.1f} s")
