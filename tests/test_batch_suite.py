@@ -14,7 +14,14 @@ import pytest
 
 from edgedog.batch.outcome import RunOutcome
 from edgedog.batch.suite import MAX_RUNS, RunSpec, expand, load_suite
-from edgedog.batch.table import configuration_rows, csv_text, markdown, mean_and_spread, run_rows
+from edgedog.batch.table import (
+    across_scenes,
+    configuration_rows,
+    csv_text,
+    markdown,
+    mean_and_spread,
+    run_rows,
+)
 from edgedog.errors import ConfigError, InputError
 from edgedog.train.config import preset, with_overrides
 from tests.helpers.bad_inputs import edgedog_in_process
@@ -214,5 +221,26 @@ def test_tables_group_runs_by_configuration():
     assert table[0]["f10_mean"] == "45.0" and table[1]["f10_std"] == ""
     text = markdown(runs, [a, b])
     assert "| box fast full weighting=exp | 0 1 2 | 3 | 0 | 22.5 ± 3.5 | 45.0 ± 7.1 |" in text
-    assert "| b_s1 | 1 | – | – | – | – | – | – | – | x: bad |" in text
+    assert "| b_s1 | 1 | – | – | – | – | – | – | – | – | x: bad |" in text
     json.dumps({"runs": runs, "configurations": [a, b]})  # plain data
+    assert across_scenes([a, b]) == []  # one scene: no setting ran on several
+    assert "Per setting, over scenes" not in text
+
+
+def test_a_setting_on_several_scenes_has_its_mean_spread_and_worst_scene():
+    """Two scenes' configurations of one setting: the mean and sample spread of their means, and
+    the scene of the lowest F10; another setting on one scene gets no such row."""
+    outcomes = [outcome("a_s0", "a", 0, 40.0, 10.0), outcome("a_s1", "a", 1, 50.0, 14.0),
+                outcome("c_s0", "c", 0, 70.0, 20.0)]
+    runs = run_rows(outcomes)
+    runs[2]["scene"] = "other"  # configuration c: the same setting on a second scene
+    for row, rss in zip(runs, (900.0, 1000.0, 1200.0)):
+        row["peak_rss_mib"] = rss
+    configurations = configuration_rows(runs)
+    (setting,) = across_scenes(configurations)
+    assert (setting["preset"], setting["scenes"]) == ("fast", 2)
+    assert (setting["worst"], setting["worst_f10"]) == ("box", 45.0)
+    assert setting["f10_mean"] == 57.5 and setting["f10_std"] == pytest.approx(math.sqrt(2 * 12.5 ** 2))
+    assert setting["peak_rss_mib_mean"] == 1075.0
+    text = markdown(runs, configurations)
+    assert "| fast full weighting=exp | 2 | " in text and "| box (45.0) |" in text

@@ -1,5 +1,6 @@
-"""A batch's results: one row per run, one per configuration (its seeds' mean and spread), as
-CSV, Markdown, JSON and a PNG plot.
+"""A batch's results: one row per run, one per configuration (its seeds' mean and spread), and
+one per setting that ran on several scenes (the scenes' mean, spread and worst), as CSV, Markdown,
+JSON and a PNG plot.
 
 The spread is the sample standard deviation over a configuration's runs (n - 1 in the
 denominator; none for a single run). Means and spreads are over the runs that have the value: a
@@ -34,8 +35,9 @@ class Column:
 
 VALUES = (Column("f5", "F5", 1), Column("f10", "F10", 1), Column("f20", "F20", 1),
           Column("acc_mm", "Acc (mm)", 2), Column("comp_mm", "Comp (mm)", 2),
-          Column("train_seconds", "train (s)", 1), Column("primitives", "primitives", 0))
-TIMINGS = ("train_seconds",)
+          Column("train_seconds", "train (s)", 1), Column("primitives", "primitives", 0),
+          Column("peak_rss_mib", "peak RSS (MiB)", 0))
+TIMINGS = ("train_seconds", "peak_rss_mib")
 """Values that differ between two runs of the same batch: everything else is reproducible."""
 _SCORES = {"f5": "fscore_5mm", "f10": "fscore_10mm", "f20": "fscore_20mm", "acc_mm": "acc_mm",
            "comp_mm": "comp_mm"}
@@ -52,7 +54,7 @@ def run_rows(outcomes: list[RunOutcome]) -> list[dict]:
                      "preset": spec.preset, "row": spec.row or "", "changes": ";".join(spec.changes),
                      "seed": spec.seed, **{key: curves.get(name) for key, name in _SCORES.items()},
                      "train_seconds": log.get("train_seconds"), "primitives": log.get("final_primitives"),
-                     "error": outcome.error})
+                     "peak_rss_mib": log.get("peak_rss_mib"), "error": outcome.error})
     return rows
 
 
@@ -86,6 +88,29 @@ def configuration_rows(runs: list[dict]) -> list[dict]:
     return summary
 
 
+def across_scenes(configurations: list[dict]) -> list[dict]:
+    """One row per setting (preset, row and changes) that ran on two scenes or more: its scenes,
+    the mean and sample standard deviation over scenes of the configurations' means of each of the
+    VALUES (`<value>_mean`, `<value>_std`), and the scene of the lowest mean F10 (`worst`, with
+    `worst_f10`): a suite's result is its mean and its worst object, never one object."""
+    groups: dict[tuple, list[dict]] = {}
+    for row in configurations:
+        groups.setdefault((row["preset"], row["row"], row["changes"]), []).append(row)
+    summary = []
+    for (preset, row_name, changes), rows in groups.items():
+        if len({row["scene"] for row in rows}) < 2:
+            continue
+        entry = {"preset": preset, "row": row_name, "changes": changes, "scenes": len(rows)}
+        for column in VALUES:
+            means = [row[f"{column.key}_mean"] for row in rows if row[f"{column.key}_mean"] is not None]
+            entry[f"{column.key}_mean"], entry[f"{column.key}_std"] = mean_and_spread(means)
+        scored = [row for row in rows if row["f10_mean"] is not None]
+        worst = min(scored, key=lambda row: row["f10_mean"]) if scored else None
+        entry["worst"], entry["worst_f10"] = (worst["scene"], worst["f10_mean"]) if worst else ("", None)
+        summary.append(entry)
+    return summary
+
+
 def csv_text(rows: list[dict]) -> str:
     """`rows` (dicts with the same keys) as CSV; None is an empty cell."""
     buffer = io.StringIO()
@@ -110,9 +135,22 @@ def label(row: dict) -> str:
 
 
 def markdown(runs: list[dict], configurations: list[dict]) -> str:
-    """The configurations' table (mean ± sample std over seeds), then the runs'."""
+    """The settings' table over scenes (where a setting ran on several), the configurations'
+    (mean ± sample std over seeds), then the runs'."""
     headers = [column.header for column in VALUES]
-    lines = ["**Per configuration: mean ± sample standard deviation over its runs**", "",
+    lines = []
+    settings = across_scenes(configurations)
+    if settings:
+        lines += ["**Per setting, over scenes: mean ± sample standard deviation of the scenes' means, "
+                  "and the worst scene by F10**", "",
+                  "| setting | scenes | " + " | ".join(headers) + " | worst (F10) |",
+                  "|---|---|" + "---|" * (len(headers) + 1)]
+        for row in settings:
+            cells = [_mean_spread(row[f"{c.key}_mean"], row[f"{c.key}_std"], c.digits) for c in VALUES]
+            lines.append(f"| {label({'scene': '', **row})} | {row['scenes']} | " + " | ".join(cells)
+                         + f" | {row['worst']} ({_number(row['worst_f10'], 1)}) |")
+        lines.append("")
+    lines += ["**Per configuration: mean ± sample standard deviation over its runs**", "",
              "| configuration | seeds | runs | failed | " + " | ".join(headers) + " |",
              "|---|---|---|---|" + "---|" * len(headers)]
     for row in configurations:
@@ -161,7 +199,8 @@ def write_tables(out: Path, outcomes: list[RunOutcome]) -> list[Path]:
     runs = run_rows(outcomes)
     configurations = configuration_rows(runs)
     paths = [out / name for name in BATCH_FILES]
-    atomic_write_json(paths[0], {"configurations": configurations, "runs": runs})
+    atomic_write_json(paths[0], {"settings": across_scenes(configurations), "configurations": configurations,
+                                 "runs": runs})
     atomic_write_bytes(paths[1], csv_text(configurations).encode())
     atomic_write_bytes(paths[2], csv_text(runs).encode())
     atomic_write_bytes(paths[3], markdown(runs, configurations).encode())
