@@ -289,10 +289,16 @@ def test_a_real_mouse_enlarges_an_inspector_and_picks_a_curve(finished_run, wind
         widgets = json.loads(rects.read_text())
         x0, y0, x1, y1 = widgets["inspector U"]
         index, (x, y) = curve_under(cv2.imread(str(shot)), widgets["3D view"], count)
-        for px, py in (((x0 + x1) / 2, (y0 + y1) / 2), (x, y)):
-            subprocess.run(["xdotool", "mousemove", "--window", window, str(round(px)), str(round(py)),
-                            "click", "1"], env=env, timeout=30, check=True)
-            time.sleep(1.0)
+        # The move first, the click a few frames later (a press that arrives with the move may be
+        # read at the pointer's old place by a slow frame); the pick's click is given three times,
+        # 1.5 s apart (no double-click), as one was lost once in CI: each picks the same curve.
+        for (px, py), clicks in ((((x0 + x1) / 2, (y0 + y1) / 2), 1), ((x, y), 3)):
+            subprocess.run(["xdotool", "mousemove", "--window", window, str(round(px)), str(round(py))],
+                           env=env, timeout=30, check=True)
+            for _ in range(clicks):
+                time.sleep(0.5)
+                subprocess.run(["xdotool", "click", "1"], env=env, timeout=30, check=True)
+                time.sleep(1.0)
         out, err = studio.communicate(timeout=180)
     finally:
         if studio.poll() is None:
