@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import itertools
 import json
-import os
 import subprocess
 import sys
 import time
@@ -274,21 +273,14 @@ def test_a_real_mouse_enlarges_an_inspector_and_picks_a_curve(finished_run, wind
                {"expect_state": {"view.picked.curve": ["!=", None]}, "timeout": 120},
                {"record": {"picked": "view.picked.curve.index", "lines": "view.picked.lines"}},
                {"request": "close"}]
-    report, script = tmp_path / "report.json", tmp_path / "script.json"
-    script.write_text(json.dumps({"report": str(report), "actions": actions}))
-    env = {**os.environ, "DISPLAY": window_manager}
-    studio = subprocess.Popen([sys.executable, "-m", "edgedog", "studio", str(finished_run),
-                               "--script", script, "--size", "1280x800"], env=env, cwd=tmp_path,
-                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
+    picked = {}
+
+    def click_inspector_then_curve(window: str, env: dict, studio: subprocess.Popen) -> None:
         wait_for_file(rects, studio)
         wait_for_file(shot, studio)
-        found = subprocess.run(["xdotool", "search", "--sync", "--name", "EdgeDoG Studio"], env=env,
-                               capture_output=True, text=True, timeout=60)
-        window = found.stdout.split()[0]
         widgets = json.loads(rects.read_text())
         x0, y0, x1, y1 = widgets["inspector U"]
-        index, (x, y) = curve_under(cv2.imread(str(shot)), widgets["3D view"], count)
+        picked["index"], (x, y) = curve_under(cv2.imread(str(shot)), widgets["3D view"], count)
         # The move first, the click a few frames later (a press that arrives with the move may be
         # read at the pointer's old place by a slow frame); the pick's click is given three times,
         # 1.5 s apart (no double-click), as one was lost once in CI: each picks the same curve.
@@ -299,11 +291,8 @@ def test_a_real_mouse_enlarges_an_inspector_and_picks_a_curve(finished_run, wind
                 time.sleep(0.5)
                 subprocess.run(["xdotool", "click", "1"], env=env, timeout=30, check=True)
                 time.sleep(1.0)
-        out, err = studio.communicate(timeout=180)
-    finally:
-        if studio.poll() is None:
-            studio.kill()
-            studio.wait()
-    outcome = json.loads(report.read_text()) if report.is_file() else {}
-    assert_ok(subprocess.CompletedProcess(studio.args, studio.returncode, out, err), outcome)
-    assert outcome["marks"]["picked"] == index, outcome["marks"]["lines"]
+
+    result, outcome = window_tests.run_driven(actions, [finished_run], window_manager, tmp_path,
+                                              click_inspector_then_curve)
+    assert_ok(result, outcome)
+    assert outcome["marks"]["picked"] == picked["index"], outcome["marks"]["lines"]

@@ -10,6 +10,7 @@ import shutil
 import subprocess
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import cv2
@@ -57,10 +58,11 @@ def window_manager(xvfb_display) -> str:
         manager.wait()
 
 
-def run_with_keys(actions: list[dict], keys: list[str | float], args: list, display: str, folder: Path
-                  ) -> tuple[subprocess.CompletedProcess, dict]:
-    """As `run_script`, while xdotool types `keys` into the window: a key name (X's, e.g. "F1",
-    "Escape", "ctrl+o"), or seconds to wait. The script's expectations follow what they do."""
+def run_driven(actions: list[dict], args: list, display: str, folder: Path,
+               drive: Callable[[str, dict, subprocess.Popen], None]
+               ) -> tuple[subprocess.CompletedProcess, dict]:
+    """As `run_script`, while `drive(window, env, studio)` gives the activated window real input
+    (xdotool with `env`'s display). The script's expectations follow what the input does."""
     report, script = folder / "report.json", folder / "script.json"
     script.write_text(json.dumps({"report": str(report), "actions": actions}))
     env = {**os.environ, "DISPLAY": display}
@@ -72,11 +74,7 @@ def run_with_keys(actions: list[dict], keys: list[str | float], args: list, disp
                                capture_output=True, text=True, timeout=120)
         window = found.stdout.split()[0]
         subprocess.run(["xdotool", "windowactivate", "--sync", window], env=env, timeout=30)
-        for key in keys:
-            if isinstance(key, (int, float)):
-                time.sleep(key)
-            elif studio.poll() is None:
-                subprocess.run(["xdotool", "key", "--clearmodifiers", key], env=env, timeout=30)
+        drive(window, env, studio)
         out, err = studio.communicate(timeout=180)
     finally:
         if studio.poll() is None:
@@ -84,6 +82,20 @@ def run_with_keys(actions: list[dict], keys: list[str | float], args: list, disp
             studio.wait()
     outcome = json.loads(report.read_text()) if report.is_file() else {}
     return subprocess.CompletedProcess(studio.args, studio.returncode, out, err), outcome
+
+
+def run_with_keys(actions: list[dict], keys: list[str | float], args: list, display: str, folder: Path
+                  ) -> tuple[subprocess.CompletedProcess, dict]:
+    """`run_driven` with xdotool typing `keys`: a key name (X's, e.g. "F1", "Escape", "ctrl+o"), or
+    seconds to wait."""
+    def type_keys(window: str, env: dict, studio: subprocess.Popen) -> None:
+        for key in keys:
+            if isinstance(key, (int, float)):
+                time.sleep(key)
+            elif studio.poll() is None:
+                subprocess.run(["xdotool", "key", "--clearmodifiers", key], env=env, timeout=30)
+
+    return run_driven(actions, args, display, folder, type_keys)
 
 
 def assert_ok(result: subprocess.CompletedProcess, outcome: dict) -> dict:
