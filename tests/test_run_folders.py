@@ -213,3 +213,21 @@ def test_a_full_disk_keeps_the_old_file_and_names_the_path(tmp_path, monkeypatch
     assert str(caught.value).startswith(str(target))
     assert json.loads(target.read_text()) == {"kept": True}
     assert sorted(p.name for p in tmp_path.iterdir()) == ["log.json"]  # no temporary file left
+
+
+def test_a_new_folder_a_writer_holds_is_in_use_not_someone_elses(tmp_path):
+    """Between a writer's lock and its config.json, its folder holds the lock and a temporary
+    file: another process is told that the folder is in use, not that it is not a run."""
+    from edgedog.train.run_folder import RunLock, check_new_run_folder, lock_holder
+
+    run = tmp_path / "run"
+    lock = RunLock.acquire(run)
+    (run / ".config.json.0.tmp").write_text("{}")
+    check = ("from pathlib import Path; from edgedog.train.run_folder import check_new_run_folder; "
+             f"check_new_run_folder(Path({str(run)!r}))")
+    refused = subprocess.run([sys.executable, "-c", check], capture_output=True, text=True)
+    assert f"is in use by another edgedog process (pid {os.getpid()})" in refused.stderr
+    lock.release()
+    assert lock_holder(run) is None
+    with pytest.raises(InputError, match="is not empty and is not an edgedog run folder"):
+        check_new_run_folder(run)

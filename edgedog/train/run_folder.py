@@ -178,7 +178,29 @@ def check_new_run_folder(path: Path) -> None:
     except OSError as exc:
         raise InputError(path, f"cannot be read ({exc.strerror})") from None
     if entries:
+        holder = lock_holder(path)
+        if holder not in (None, str(os.getpid())):  # a writer has just made it, its run not yet recorded
+            raise InputError(path, f"is in use by another edgedog process (pid {holder}); wait for it "
+                                   "to finish or choose another folder")
         raise InputError(path, "is not empty and is not an edgedog run folder; choose a new or empty folder")
+
+
+def lock_holder(path: Path) -> str | None:
+    """The pid in `path`'s lock file while another process holds that lock ("unknown" when it
+    wrote none), else None; takes no lock and creates nothing."""
+    try:
+        fd = os.open(path / LOCK_FILE, os.O_RDONLY | os.O_NOFOLLOW | os.O_CLOEXEC)
+    except OSError:
+        return None
+    try:
+        fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)  # released when fd closes
+    except OSError as exc:
+        if exc.errno in (errno.EWOULDBLOCK, errno.EAGAIN):
+            return os.pread(fd, 32, 0).decode(errors="replace").strip() or "unknown"
+        return None
+    finally:
+        os.close(fd)
+    return None
 
 
 def config_digest(config: TrainConfig) -> str:
