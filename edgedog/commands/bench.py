@@ -123,6 +123,8 @@ def add_parser(subparsers) -> None:
     layers.set_defaults(run=run_layers)
     _add_steps(kinds)
     _add_speed_error(kinds)
+    _add_sfm_vs_cameras(kinds)
+    _add_distorted_copy(kinds)
 
 
 def _add_steps(kinds) -> None:
@@ -162,6 +164,51 @@ def _add_speed_error(kinds) -> None:
                        help="evaluation points per run, evenly spaced in epochs, the last at the end")
     _add_batch_options(speed)
     speed.set_defaults(run=run_speed_error)
+
+
+def _add_sfm_vs_cameras(kinds) -> None:
+    from edgedog.scenes.sfm import MATCHERS
+
+    sfm = kinds.add_parser(
+        "sfm-vs-cameras",
+        help="curves from the photos alone (edgedog sfm) against curves from the known cameras",
+        description="Recover the cameras of a scene's photos with edgedog sfm (OUT/sfm-scene), train on it "
+                    "(OUT/sfm-run) and on the scene's own cameras at the same resolution (OUT/cameras-run), "
+                    "carry the SfM run's curves into the scene's frame by the similarity between the two "
+                    "camera sets (Umeyama on the centres, matched by image name), and write the distances "
+                    "between the two curve sets (median and 90th percentile, each direction and both, in "
+                    "scene units and as a share of the object's size; also on the object alone when the "
+                    "scene has masks) to OUT/sfm_vs_cameras.json and .md. The SfM scene and finished runs "
+                    "in OUT are reused, unfinished runs resumed.")
+    _add_run_arguments(sfm, "scene folder with known cameras (its photos in one folder)",
+                       "folder for the SfM scene, the two runs and the tables",
+                       "override a training setting of both runs (repeatable)")
+    sfm.add_argument("--max-image-size", type=bounded_integer(16, MAX_SIZE), default=800, metavar="PIXELS",
+                     help="longest side of the SfM scene's images (edgedog sfm --max-image-size); the "
+                          "known-camera run is downscaled to match (default 800)")
+    sfm.add_argument("--matcher", choices=MATCHERS, default="exhaustive", help="as for edgedog sfm")
+    sfm.add_argument("--quiet", action="store_true", help="no progress bars")
+    sfm.set_defaults(run=run_sfm_vs_cameras)
+
+
+def _add_distorted_copy(kinds) -> None:
+    copy = kinds.add_parser(
+        "distorted-copy", help="a nerfstudio copy with distorted cameras against the original scene",
+        description="Write a nerfstudio copy of a pinhole scene with ground truth (OUT/copy/NAME: "
+                    "transforms.json, camera_model OPENCV with synthetic k1 k2 p1 p2; images, masks and "
+                    "edge maps distorted with OpenCV; the ground truth linked), train the original for "
+                    "each of --seeds and the copy for each of --copy-seeds (OUT/original-seedN, "
+                    "OUT/copy-seedN), and write their scores, with each scene's mean and spread, to "
+                    "OUT/distorted_copy.json and .md. The copy and finished runs in OUT are reused.")
+    _add_run_arguments(copy, "pinhole scene folder with ground truth (e.g. an ABC-NEF object)",
+                       "folder for the copy, the runs and the tables",
+                       "override a training setting of every run (repeatable)")
+    copy.add_argument("--seeds", type=_seeds, default=(0,), metavar="N,...",
+                      help="training seeds of the original (default 0)")
+    copy.add_argument("--copy-seeds", type=_seeds, default=(0,), metavar="N,...",
+                      help="training seeds of the copy (default 0)")
+    copy.add_argument("--quiet", action="store_true", help="no progress bars")
+    copy.set_defaults(run=run_distorted_copy)
 
 
 def _add_json_arguments(parser: argparse.ArgumentParser) -> None:
@@ -279,6 +326,29 @@ def run_steps(args: argparse.Namespace) -> None:
                     progress=not args.quiet)
     print(markdown(read_json(args.out / STEPS_FILES[0])))
     print(f"wrote {args.out / STEPS_FILES[0]} and {args.out / STEPS_FILES[1]}")
+
+
+def run_sfm_vs_cameras(args: argparse.Namespace) -> None:
+    from edgedog.bench.sfm_cameras import FILES, markdown, run_sfm_vs_cameras
+    from edgedog.train.config import preset, with_overrides
+
+    config = with_overrides(preset(args.preset), args.overrides)
+    record = run_sfm_vs_cameras(args.scene, args.out, args.preset, config, args.max_image_size, args.matcher,
+                                progress=not args.quiet)
+    print(markdown(record))
+    print("wrote " + ", ".join(str(args.out / name) for name in FILES))
+
+
+def run_distorted_copy(args: argparse.Namespace) -> None:
+    from edgedog.bench.distorted_copy import FILES, markdown, run_distorted_copy
+    from edgedog.train.config import preset, with_overrides
+
+    _check_no_seed(args.overrides)
+    config = with_overrides(preset(args.preset), args.overrides)
+    record = run_distorted_copy(args.scene, args.out, args.preset, config, args.seeds, args.copy_seeds,
+                                progress=not args.quiet)
+    print(markdown(record))
+    print("wrote " + ", ".join(str(args.out / name) for name in FILES))
 
 
 def run_edges(args: argparse.Namespace) -> None:
