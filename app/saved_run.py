@@ -1,25 +1,30 @@
-"""A finished run folder on screen: its primitives, curves and history as the window reads a
-training worker's, so that opening a finished run shows its result at once.
+"""A run folder as it was saved, read into the same primitives, curves and history as the window
+reads a training worker's, so that opening a run shows what it holds at once: a finished run as
+it ended, an interrupted one at its last checkpoint.
 
-The model comes from checkpoint.pt (every layer of a layered run), the history (loss and
-primitive count per epoch, against training seconds) from log.json, the curves and their scores
-from curves.json and extract.json when `edgedog extract` (or the end of training) wrote them.
+The model comes from the checkpoint.pt of the highest layer that wrote one (it holds every layer
+below it too). The history (loss and primitive count per epoch, against training seconds) is each
+layer's in turn, bottom first: a finished layer's from its log.json, the interrupted layer's from
+its checkpoint (which stores the history so far). The curves and their scores come from
+curves.json and extract.json when `edgedog extract` (or the end of training) wrote them.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 from edgedog.app.extraction import Extraction
-from edgedog.app.worker import FINISHED, Published, RunInfo
+from edgedog.app.worker import FINISHED, STOPPED, Published, RunInfo
 from edgedog.renderer.config import RasterConfig
 
 from edgedog.curve_files import read_edges
 from edgedog.curves.report import REPORT
 from edgedog.errors import InputError
 from edgedog.files import read_json
-from edgedog.train.lifecycle import LOG, RunRecord
+from edgedog.train.checkpoint import CHECKPOINT, read_checkpoint
+from edgedog.train.lifecycle import LOG, RunRecord, is_finished
 from edgedog.train.run_folder import RunFolder, read_run
 from edgedog.train.trainer import read_stack, stack_snapshot
 
@@ -56,39 +61,92 @@ def read_extraction(path: Path, step: int, elapsed: float) -> Extraction | None:
     return Extraction(step, elapsed, curves, counts, _fscore(path / REPORT))
 
 
-class SavedRun:
-    """What a TrainingWorker publishes, read from a finished run folder (nothing runs).
+@dataclass(frozen=True)
+class SavedLayer:
+    """What one layer's folder recorded of its training.
 
     Attributes:
-        latest: the final model; info: its detector, raster, folder, epochs, views;
-        detectors: layer index -> its maps; extraction: the curves of the whole model (None
-        before `edgedog extract`); history: log.json's rows (of the top layer's training).
+        history: its rows (epoch, loss, primitives, seconds of this layer's training);
+        detector: the maps it was fitted to; step: its steps trained; seconds: its training time.
     """
 
-    phase = FINISHED
+    history: list[dict]
+    detector: str
+    step: int
+    seconds: float
+
+
+def saved_layer(layer: RunFolder, views: int) -> SavedLayer | None:
+    """A layer as saved: finished (its log.json), interrupted (its checkpoint, read as data only),
+    or None when it has not written a checkpoint yet."""
+    if is_finished(layer.path):
+        log = read_json(layer.path / LOG)
+        history = log.get("history")
+        if not isinstance(history, list) or not isinstance(log.get("detector"), str):
+            raise InputError(layer.path / LOG, "expected 'history' and 'detector' (written by edgedog train)")
+        seconds = float(log.get("train_seconds", 0.0))
+        return SavedLayer(history, log["detector"], len(history) * views, seconds)
+    if not (layer.path / CHECKPOINT).is_file():
+        return None
+    saved = read_checkpoint(layer.path / CHECKPOINT)
+    history, detector, step = saved["history"], saved["detector"], saved["step_index"]
+    if not isinstance(history, list) or not isinstance(detector, str) or not isinstance(step, int):
+        raise InputError(layer.path / CHECKPOINT, "malformed checkpoint: its 'history', 'detector' or "
+                                                  "'step_index'")
+    return SavedLayer(history, detector, step, float(saved["seconds"]))
+
+
+def saved_layers(record: RunRecord, views: int) -> list[tuple[RunFolder, SavedLayer]]:
+    """The layers of a run that saved something, bottom first (a layer trains only once those
+    below it finished, so these are the lowest ones)."""
+    found = []
+    for layer in record.layers():
+        saved = saved_layer(layer, views)
+        if saved is None:
+            break
+        found.append((layer, saved))
+    return found
+
+
+class SavedRun:
+    """What a TrainingWorker publishes, read from a run folder as saved (nothing runs).
+
+    Attributes:
+        phase: FINISHED, or STOPPED for a run interrupted before its end;
+        latest: the model of the highest layer saved (elapsed: the training seconds of every
+            layer so far); info: its detector, raster, folder, epochs, views;
+        detectors: layer index -> its maps, for every layer saved; extraction: the curves of the
+            whole model (None before `edgedog extract`, and for an interrupted run);
+        history: every saved layer's rows in turn, their seconds counted from the run's start;
+        steps: the steps of every layer saved.
+    """
+
     error = traceback = None
     alive = False
 
     def __init__(self, record: RunRecord, views: int):
-        """`record`: a finished run (its top layer is read: its checkpoint holds every layer)."""
-        run = read_run(record.layers()[-1].path)
-        log = read_json(run.path / LOG)
-        history = log.get("history")
-        if not isinstance(history, list) or not isinstance(log.get("detector"), str):
-            raise InputError(run.path / LOG, "expected 'history' and 'detector' (written by edgedog train)")
-        self.history = history
-        self.steps = len(history) * views
-        seconds = float(log.get("train_seconds", 0.0))
+        """`record`: a run whose lowest layer wrote a checkpoint (an InputError otherwise)."""
+        layers = saved_layers(record, views)
+        if not layers:
+            raise InputError(record.path, "holds no checkpoint yet: nothing to show")
+        self.phase = FINISHED if len(layers) == len(record.layers()) and is_finished(layers[-1][0].path) \
+            else STOPPED
+        self.history, seconds = [], 0.0
+        for _, layer in layers:  # each layer's seconds count from its own start
+            self.history += [{**row, "seconds": seconds + float(row["seconds"])} for row in layer.history]
+            seconds += layer.seconds
+        self.steps = sum(layer.step for _, layer in layers)
         self.steps_per_second = self.steps / seconds if seconds > 0 else 0.0
-        loss = float(history[-1]["loss"]) if history else float("nan")
-        snapshot = stack_snapshot(read_stack(run.path), self.steps, len(history), loss)
+        folder, top = layers[-1]
+        loss = float(top.history[-1]["loss"]) if top.history else float("nan")
+        snapshot = stack_snapshot(read_stack(folder.path), top.step, len(top.history), loss)
         self.latest = Published(0, 1, snapshot, seconds)
-        config = run.config
+        config = read_run(folder.path).config
         raster = RasterConfig(kernel=config.model.kernel, k_activation=config.model.k_activation)
-        self.info = RunInfo(log["detector"], raster,
-                            run.path, config.schedule.epochs, views, self.steps)
-        self.detectors = layer_detectors(record.layers())
-        self.extraction = read_extraction(record.curves_folder, snapshot.step, seconds)
+        self.info = RunInfo(top.detector, raster, folder.path, config.schedule.epochs, views, top.step)
+        self.detectors = {index: layer.detector for index, (_, layer) in enumerate(layers)}
+        self.extraction = (read_extraction(record.curves_folder, snapshot.step, seconds)
+                           if self.phase == FINISHED else None)
 
     def series(self) -> np.ndarray:
         """(K, 3) per epoch: training seconds, mean loss, primitives (as the worker's series)."""

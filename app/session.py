@@ -3,19 +3,22 @@
 A run folder is what `edgedog train` writes (config.json: scene, preset, config; a layered run's
 layers.json), so `edgedog train --resume`, `extract` and `eval` work on the studio's runs too,
 and a run the studio finishes ends with the same files (curves and extract.json with scores).
-Opening a run folder resumes it on the first start (a finished one is shown as it ended:
-`SavedRun`); every restart trains into a new folder beside it, so no earlier run's checkpoint is
-ever overwritten.
+Opening a run folder shows it as saved (`SavedRun`: a finished run as it ended, an interrupted
+one at its last checkpoint, with its history) and resumes an interrupted one on the first start,
+its plots continued; every restart trains into a new folder beside it, so no earlier run's
+checkpoint is ever overwritten.
 
-Each start plans its run as `edgedog train` does (`lifecycle.plan_run`, on the scene the session
-keeps loaded) and opens it (`edgedog.train.run.open_run`): the run holds its folder's lock from
-its start until its worker has ended, so no other edgedog process writes into it meanwhile, and
-a new folder left without a checkpoint (a start stopped during the trainer's set-up, or one that
-failed) is removed when it ends. A run of one layer and a layered run are the same object.
+Each start plans its run as `edgedog train` does (`lifecycle.plan_run`, on a copy of the scene
+as the session loaded it: maps computed since for the window are not the scene's own) and opens
+it (`edgedog.train.run.open_run`): the run holds its folder's lock from its start until its
+worker has ended, so no other edgedog process writes into it meanwhile, and a new folder left
+without a checkpoint (a start stopped during the trainer's set-up, or one that failed) is removed
+when it ends. A run of one layer and a layered run are the same object.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -23,12 +26,13 @@ from pathlib import Path
 
 import numpy as np
 from edgedog.app.saved_run import SavedRun, layer_detectors
-from edgedog.app.worker import TrainingWorker
+from edgedog.app.worker import FINISHED, Resumed, TrainingWorker
 
 from edgedog.curve_files import EdgeCurves
 from edgedog.edges.cache import attach_edge_maps
 from edgedog.groundtruth import ground_truth_for
 from edgedog.scenes import Scene
+from edgedog.train.checkpoint import CHECKPOINT
 from edgedog.train.config import DEFAULT_PRESET, TrainConfig, preset, with_overrides
 from edgedog.train.layers import layer_name
 from edgedog.train.levels import resolve_levels
@@ -38,7 +42,6 @@ from edgedog.train.lifecycle import (
     RunPlan,
     RunRecord,
     holds_run,
-    is_finished,
     load_run_scene,
     plan_run,
     read_record,
@@ -82,7 +85,8 @@ class Session:
             command line's overrides).
         resume: the run opened (a run folder, or a layered run), None for a scene.
         active: the latest run started (None before the first start), stopped or not.
-        saved: the opened run when it is finished, shown until a start.
+        saved: the opened run as saved (finished, or at its last checkpoint), shown until a
+            start; None for a scene, or a run that saved nothing yet.
         ground_truth: (M, 3) ground-truth edge points in world coordinates, or None.
     """
 
@@ -98,6 +102,9 @@ class Session:
         self._ending: list[ActiveRun] = []
         self.runs = 0
         self._scenes: dict[tuple[int, str], Scene] = {}
+        """The scenes as loaded: what runs are planned on (fingerprinted with the maps they ship)."""
+        self._shown: dict[tuple[int, str], Scene] = {}
+        """The same scenes as the window and the trainers use them, other maps attached."""
         scene = self.training_scene(self.config)  # a bad folder fails here, before any window
         self.saved = None if resume is None else self._saved(resume, scene)
         self.ground_truth = None
@@ -146,8 +153,8 @@ class Session:
         return None if run is None else run.curves_folder
 
     def _saved(self, run: RunRecord, scene: Scene) -> SavedRun | None:
-        """The opened run as it ended, when it is finished (None otherwise), its maps loaded."""
-        if not is_finished(run.layers()[-1].path):
+        """The opened run as saved, its maps loaded; None when no layer wrote a checkpoint yet."""
+        if not (run.layers()[0].path / CHECKPOINT).is_file():  # the lowest layer trains first
             return None
         saved = SavedRun(run, len(scene))
         for detector in saved.detectors.values():
@@ -160,8 +167,20 @@ class Session:
 
     def training_scene(self, config: TrainConfig) -> Scene:
         """The scene as a run of `config` trains on it (`lifecycle.load_run_scene`: its resolution,
-        damaged views refused or skipped), loaded once per resolution and choice."""
+        damaged views refused or skipped), loaded once per resolution and choice; the inspectors,
+        extractions and trainers attach the maps they compute to it."""
         key = (config.maps.downscale, config.run.damaged_views)
+        if key not in self._shown:
+            self._shown[key] = dataclasses.replace(self._loaded(key, config))
+        return self._shown[key]
+
+    def _planned_scene(self, config: TrainConfig) -> Scene:
+        """A copy of the scene as loaded, for a plan: its maps fingerprint is that of the maps the
+        scene ships (attaching computed maps to the shown scene would change it, and a resume
+        would then be refused as trained on other maps)."""
+        return dataclasses.replace(self._loaded((config.maps.downscale, config.run.damaged_views), config))
+
+    def _loaded(self, key: tuple[int, str], config: TrainConfig) -> Scene:
         if key not in self._scenes:
             self._scenes[key] = load_run_scene(self.scene_path, config)
         return self._scenes[key]
@@ -174,7 +193,8 @@ class Session:
     @property
     def resumable(self) -> bool:
         """Whether a start (not a restart) would continue the opened run folder."""
-        return self.resume is not None and self.runs == 0 and self.saved is None
+        finished = self.saved is not None and self.saved.phase == FINISHED
+        return self.resume is not None and self.runs == 0 and not finished
 
     def start(self, preset_name: str, config: TrainConfig, fresh: bool = False, layers: int = 1
               ) -> TrainingWorker:
@@ -184,15 +204,18 @@ class Session:
         process is writing is an InputError naming it; levels whose maps cannot be had are a
         ConfigError, before any folder is made."""
         self.stop()
+        resumed = None
         if self.resumable and not fresh:  # checked as `edgedog train --resume` checks it
-            plan = plan_run(self.resume.path, self.training_scene(self.config), policy=CONTINUE)
+            plan = plan_run(self.resume.path, self._planned_scene(self.config), policy=CONTINUE)
+            if self.saved is not None:  # the plots go on from the checkpoint
+                resumed = Resumed(self.saved.latest, self.saved.series())
         else:
             plan = self._new_plan(preset_name, config, layers)
         run = open_run(plan.check(), progress=False)
         self.runs += 1
         self.run_config, self.saved = plan.run.config, None
         worker = TrainingWorker(run.trainers, self.runs, finish=lambda _: run.finish(),
-                                detectors=layer_detectors(run.layers))
+                                detectors=layer_detectors(run.layers), resumed=resumed)
         self.active = ActiveRun(run, worker)
         worker.start()
         return worker
@@ -202,7 +225,7 @@ class Session:
         layered with levels L0 .. L<layers - 1> (their default maps) when `layers` > 1."""
         path = new_run_dir(self.runs_root, self.scene_path.name)
         levels = resolve_levels([layer_name(i) for i in range(layers)]) if layers > 1 else ()
-        return plan_run(path, self.training_scene(config), preset_name, config, START, levels)
+        return plan_run(path, self._planned_scene(config), preset_name, config, START, levels)
 
     def stop(self, timeout: float | None = 1.0) -> bool:
         """Stop the current run's worker; returns whether every run stopped so far has ended

@@ -111,8 +111,11 @@ class Studio:
     def _start(self, fresh: bool) -> None:
         restart = self.state.restart
         config = restart.apply(self.session.base_config(restart.preset), self.state.live)
+        resuming = self.session.resumable and not fresh
         self.session.start(restart.preset, config, fresh=fresh, layers=restart.layers)
+        fscores = self.fscores if resuming else []  # a resumed run's plots go on
         self._reset_run()
+        self.fscores = fscores
         self.state.status = f"training into {self.session.run_dir}"
 
     @property
@@ -427,6 +430,7 @@ class Studio:
                  "layers": None if self.latest is None else sorted(layer_members(self.latest.snapshot)),
                  "series": 0 if worker is None else len(worker.series()),
                  "loss": None if self.latest is None else self.latest.snapshot.loss,
+                 "elapsed": None if self.latest is None else self.latest.elapsed,
                  "view_at_home": self.view.at_home, "view_index": self.state.view,
                  "frames": self.frames, "view_renders": self.view.renders, "cpu_seconds": time.process_time(),
                  "help": self.state.show_help, "cut_widgets": sorted(widgets.CUT),

@@ -71,6 +71,15 @@ class RunInfo:
     resumed_at_step: int
 
 
+@dataclass(frozen=True)
+class Resumed:
+    """Where a resumed run's worker starts from: the snapshot shown (elapsed: the seconds trained
+    before) and the (K, 3) series so far (see `TrainingWorker.series`)."""
+
+    latest: Published
+    series: np.ndarray
+
+
 LIVE_EVENT = "live_controls"
 """The event (in the trainer's events, so in log.json) recording a live change of p or w(Up)."""
 
@@ -87,7 +96,10 @@ class TrainingWorker:
 
     def __init__(self, make_trainers: Callable[[], Iterator[Trainer]], run: int = 0,
                  publish_every: float = PUBLISH_EVERY, finish: Callable[[Trainer], object] | None = None,
-                 detectors: dict[int, str] | None = None):
+                 detectors: dict[int, str] | None = None, resumed: Resumed | None = None):
+        """`resumed`: what the run showed before (a run folder opened at its last checkpoint): its
+        snapshot is shown until the first publication, its series continues, and elapsed
+        seconds count on from its."""
         self.run, self.publish_every = run, publish_every
         self._make_trainers, self._finish = make_trainers, finish
         self._lock = threading.Lock()
@@ -96,6 +108,11 @@ class TrainingWorker:
         self._trainer: Trainer | None = None
         self._latest: Published | None = None
         self._series: list[tuple[float, float, int]] = []
+        self._elapsed_before = 0.0
+        if resumed is not None:
+            self._latest = Published(run, 0, resumed.latest.snapshot, resumed.latest.elapsed)
+            self._series = [tuple(row) for row in resumed.series.tolist()]
+            self._elapsed_before = resumed.latest.elapsed
         self._steps, self._training_seconds = 0, 0.0
         self.phase = STARTING
         self.info: RunInfo | None = None
@@ -111,7 +128,7 @@ class TrainingWorker:
 
     # --- the window's side
     def start(self) -> None:
-        self._started = time.perf_counter()
+        self._started = time.perf_counter() - self._elapsed_before
         self._thread.start()
 
     def update_controls(self, **changes) -> None:

@@ -262,14 +262,24 @@ def test_a_stopped_run_resumes_in_its_folder_which_it_locks(small_box, tmp_path)
     assert session.stop(None) and worker.phase == STOPPED
     RunLock.acquire(folder).release()  # released once the worker ended
     reopened = Session.open(folder)
-    assert reopened.resumable and reopened.runs_root == folder.parent and reopened.saved is None
+    assert reopened.resumable and reopened.runs_root == folder.parent
     assert reopened.config == session.config and reopened.preset == "preview"
+    # Shown at its last checkpoint, with the history the checkpoint stores.
+    saved, checkpoint = reopened.saved, torch.load(folder / CHECKPOINT, weights_only=True)
+    assert reopened.worker is saved and saved.phase == STOPPED and reopened.run_dir == folder
+    assert saved.latest.snapshot.step == checkpoint["step_index"] == saved.steps
+    assert len(saved.latest.snapshot.means) == checkpoint["model"]["means"].shape[0]
+    history = saved.series()
+    assert len(history) == len(checkpoint["history"]) > 0 and saved.latest.elapsed == checkpoint["seconds"]
     with RunLock.acquire(folder):
         with pytest.raises(InputError, match="in use"):
             reopened.start("preview", reopened.config)  # another process trains into it
     resumed = reopened.start("preview", reopened.config)
-    wait_for(lambda: resumed.info is not None, timeout=30)
-    assert reopened.run_dir == folder and resumed.info.resumed_at_step > 0
+    assert resumed.latest.snapshot is saved.latest.snapshot  # shown until the first publication
+    wait_for(lambda: resumed.info is not None and len(resumed.series()) > len(history), timeout=30)
+    assert reopened.run_dir == folder and resumed.info.resumed_at_step == checkpoint["step_index"]
+    series = resumed.series()  # the plots go on from the checkpoint's history
+    assert (series[:len(history)] == history).all() and series[len(history):, 0].min() > history[-1, 0]
     reopened.start("preview", reopened.config, fresh=True)
     assert reopened.run_dir != folder and reopened.stop(None)
 

@@ -203,6 +203,49 @@ def test_a_finished_run_opens_with_its_model_history_and_curves(box, xvfb_displa
     assert not (tmp_path / "run" / "exports").exists()  # opening wrote nothing
 
 
+def interrupted_run(scene: Path, out: Path, layers: int = 1, epochs: int = 3, stop_at: int = 2) -> Path:
+    """A run of `layers` layers of `epochs` epochs each (preview, 300 primitives, a checkpoint an
+    epoch) stopped as a closed window stops one: its lower layers finished, its top layer at the
+    checkpoint of epoch `stop_at`."""
+    from edgedog.train.config import preset, with_overrides
+    from edgedog.train.layers import layer_name
+    from edgedog.train.levels import resolve_levels
+    from edgedog.train.lifecycle import START, is_finished, load_run_scene, plan_run
+    from edgedog.train.run import open_run
+
+    config = with_overrides(preset("preview"), [f"epochs={epochs}", "init_count=300", "checkpoint_every=1"])
+    levels = resolve_levels([layer_name(i) for i in range(layers)]) if layers > 1 else ()
+    plan = plan_run(out, load_run_scene(scene, config), "preview", config, START, levels)
+    with open_run(plan.check(), progress=False) as run:
+        while not all(is_finished(layer.path) for layer in run.layers[:-1]) or run.current().epoch < stop_at:
+            run.step()
+    return out
+
+
+@pytest.mark.parametrize("layers", [1, 2])
+def test_an_interrupted_run_opens_at_its_checkpoint_and_resume_continues_its_plots(box, layers, xvfb_display,
+                                                                                   tmp_path):
+    # Issue 40, defect 4: an interrupted run opened as "no run", 0 splats and empty plots (a layered
+    # run hid its finished L0) until Resume, and Resume started the plots empty.
+    run = interrupted_run(box, tmp_path / "run", layers)
+    names = [f"L{i}" for i in range(layers)]
+    epochs = 3 * (layers - 1) + 2  # the finished layers' and the checkpoint's
+    actions = [{"expect": {"phase": "stopped", "title": "box - run - EdgeDoG Studio", "layers": names,
+                           "splats_drawn": [">", 0], "series": epochs, "loss": [">", 0],
+                           "inspectors": 6}, "timeout": 30},
+               {"mark": "opened"},
+               {"request": "start"},
+               {"expect": {"phase": "finished", "series": [">", epochs]}, "timeout": 120},
+               {"request": "close"}]
+    result, outcome = run_script(actions, [run], xvfb_display, tmp_path)
+    probe = assert_ok(result, outcome)
+    opened = outcome["marks"]["opened"]
+    assert opened["run_dir"] == str(run / names[-1] if layers > 1 else run)
+    assert opened["steps"] == epochs * 8 and opened["elapsed"] > 0
+    assert probe["runs"] == 1 and probe["run_dir"] == opened["run_dir"]  # resumed in its folder
+    assert probe["elapsed"] > opened["elapsed"]  # the time axis goes on
+
+
 def test_too_small_a_window_is_refused_in_one_line(box):
     result = subprocess.run([sys.executable, "-m", "edgedog", "studio", str(box), "--size", "320x240"],
                             capture_output=True, text=True, timeout=60)
