@@ -1,8 +1,10 @@
 """Density control's duplication on a known absgrad: which primitives it copies, how many times,
-where the copies go, and the primitive budget."""
+where the copies go, and the primitive budget; the spacing control, which makes the count follow
+the length of edge."""
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 import torch
 from edgedog.renderer.config import RasterConfig
@@ -64,3 +66,117 @@ def test_duplication_stays_within_the_budget(max_primitives, copied):
     assert events[0]["after"] == len(model) == N + 2 * copied
     sources = torch.tensor(CHOSEN[:copied] * 2, dtype=torch.long)  # the first chosen rows, as room allows
     assert torch.equal(model.k_raw.detach()[N:], before.k_raw[sources])
+
+
+# --- spacing control (edgedog.train.spacing): a budget per length of edge
+
+def along_edges(corners: list[tuple[tuple[float, float, float], tuple[float, float, float]]], count: int,
+                seed: int) -> EdgeModel:
+    """`count` small primitives spread at random along the segments (start, end) in proportion to
+    their lengths (the same count whatever the edge length, as a uniform start ends today): major
+    axis along the segment (2 degrees of noise), centres 1 mm off it at most, random opacity."""
+    g = torch.Generator().manual_seed(seed)
+    ends = torch.tensor(corners, dtype=torch.float64)
+    lengths = (ends[:, 1] - ends[:, 0]).norm(dim=1)
+    segment = torch.multinomial(lengths, count, replacement=True, generator=g)
+    t = torch.rand(count, 1, generator=g, dtype=torch.float64)
+    direction = (ends[segment, 1] - ends[segment, 0]) / lengths[segment, None]
+    means = ends[segment, 0] + t * (ends[segment, 1] - ends[segment, 0])
+    means += (torch.rand(count, 3, generator=g, dtype=torch.float64) - 0.5) * 0.002
+    axis = direction + torch.randn(count, 3, generator=g, dtype=torch.float64) * 0.035
+    axis = axis / axis.norm(dim=1, keepdim=True)
+    # A rotation whose first column is `axis` (quaternion of the shortest turn from x to it).
+    x = torch.tensor([1.0, 0.0, 0.0], dtype=torch.float64).expand(count, 3)
+    quats = torch.cat([1 + (x * axis).sum(1, keepdim=True), torch.cross(x, axis, dim=1)], dim=1)
+    quats = quats / quats.norm(dim=1, keepdim=True)
+    log_scales = torch.log(torch.tensor([0.004, 0.001, 0.001])).repeat(count, 1)
+    return EdgeModel(means.float(), log_scales.float(), quats.float(), torch.randn(count, generator=g),
+                     torch.zeros(count, 2)).requires_grad_()
+
+
+def box_edges(side: float) -> list:
+    """The 12 edges of a cube of `side` at the origin."""
+    corners = [(x, y, z) for x in (0, side) for y in (0, side) for z in (0, side)]
+    return [(a, b) for i, a in enumerate(corners) for b in corners[i + 1:]
+            if sum(p != q for p, q in zip(a, b)) == 1]
+
+
+def square_edges(side: float) -> list:
+    """The 4 edges of a square of `side` in the plane z = 0."""
+    c = [(0, 0, 0), (side, 0, 0), (side, side, 0), (0, side, 0)]
+    return [(c[i], c[(i + 1) % 4]) for i in range(4)]
+
+
+def spaced(model: EdgeModel, optimizers: Optimizers | None = None, **changes) -> tuple[EdgeModel, list[dict],
+                                                                                     Optimizers]:
+    """`model` after a spacing event at epoch 0 (no other event), the log, and its Adam
+    (`optimizers`, or new ones)."""
+    config = with_settings(TrainConfig(), dict(
+        duplicate_epochs=(), cull_projection_epochs=(), cull_opacity_epochs=(), primitive_uncertainty=False,
+        spacing_epochs=(0,), **changes))
+    optimizers = optimizers or Optimizers(model, config)
+    strategy = DensityStrategy(config, RasterConfig())
+    state = strategy.initial_state(len(model), torch.device("cpu"))
+    events = strategy.at_epoch_end(0, model, optimizers, state, views=None, generator=torch.Generator(),
+                                   keep_ratio=1.0)
+    return model, events, optimizers
+
+
+def test_spacing_makes_the_count_follow_the_edge_length():
+    # A cube's 12 edges (length 6) and a square's 4 (length 2), each covered by the same 4000
+    # primitives. At a 2 cm spacing, kept neighbours along an edge are 2 to 4 cm apart (a greedy
+    # suppression in the order of opacity leaves gaps of 1.3 spacings on average): 25 to 50 per
+    # unit of length whatever the count before.
+    counts = {}
+    for name, edges, length in (("cube", box_edges(0.5), 6.0), ("square", square_edges(0.5), 2.0)):
+        model, events, _ = spaced(along_edges(edges, 4000, seed=1), spacing=0.02)
+        assert events[0]["before"] == 4000 and events[0]["after"] == len(model) and events[0]["split"] == 0
+        counts[name] = len(model) / length
+        assert 0.5 / 0.02 < counts[name] < 1 / 0.02, (name, len(model))
+    assert 0.7 < counts["cube"] / counts["square"] < 1.3, counts
+    # No two kept primitives along one edge are closer than the spacing.
+    model, _, _ = spaced(along_edges(square_edges(0.5), 4000, seed=2), spacing=0.02)
+    means = model.means.detach()
+    distances = torch.cdist(means, means) + torch.eye(len(model)) * 10
+    parallel = (model.major_axes().detach() @ model.major_axes().detach().T).abs() > 0.9
+    assert distances[parallel].min() >= 0.02
+
+
+def test_spacing_keeps_the_most_opaque_and_both_edges_that_meet():
+    # Three primitives at one place: two along x (opacity logits 1 and 2), one along y (logit 0).
+    quat_y = [0.7071068, 0.0, 0.0, 0.7071068]  # a quarter turn about z: x goes to y
+    model = EdgeModel(torch.zeros(3, 3), torch.log(torch.tensor([[0.004, 0.001, 0.001]] * 3)),
+                      torch.tensor([[1.0, 0, 0, 0], [1.0, 0, 0, 0], quat_y]), torch.tensor([1.0, 2.0, 0.0]),
+                      torch.zeros(3, 2)).requires_grad_()
+    model, events, _ = spaced(model, spacing=0.01)
+    assert events[0]["removed"] == 1
+    assert model.opacity_logits.detach().tolist() == [2.0, 0.0]
+
+
+def test_spacing_splits_a_primitive_longer_than_the_spacing():
+    long = EdgeModel(torch.tensor([[0.5, 0.5, 0.5], [0.0, 0.0, 0.0]]),
+                     torch.log(torch.tensor([[0.05, 0.002, 0.002], [0.005, 0.002, 0.002]])),
+                     torch.tensor([[1.0, 0, 0, 0]] * 2), torch.zeros(2), torch.zeros(2, 2)).requires_grad_()
+    optimizers = Optimizers(long, with_settings(TrainConfig(), {}))
+    for tensor in long.tensors().values():
+        tensor.grad = torch.ones_like(tensor)
+    optimizers.step()
+    model, events, optimizers = spaced(long, optimizers, spacing=0.02)
+    # ceil(0.05 / 0.02) = 3 pieces along x at -2/3, 0, 2/3 of the scale, each a third as long.
+    assert events[0]["split"] == 1 and len(model) == 4
+    torch.testing.assert_close(model.means.detach()[1:, 0], torch.tensor([0.5 - 0.1 / 3, 0.5, 0.5 + 0.1 / 3]))
+    torch.testing.assert_close(model.log_scales.detach()[1:].exp(),
+                               torch.tensor([[0.05 / 3, 0.002, 0.002]] * 3))
+    assert torch.equal(model.means.detach()[0], torch.zeros(3))  # the short one stays as it was
+    moments = optimizers.adams["means"].state[model.means]["exp_avg"]
+    assert moments[0].abs().min() > 0 and not moments[1:].any()  # the pieces start afresh
+
+
+def test_relative_spacing_follows_the_objects_size():
+    small = len(spaced(along_edges(square_edges(0.5), 3000, seed=3), spacing=0.04, spacing_relative=True)[0])
+    big = along_edges(square_edges(0.5), 3000, seed=3)
+    with torch.no_grad():
+        big.means.mul_(10)
+        big.log_scales.add_(float(np.log(10)))
+    assert len(spaced(big, spacing=0.04, spacing_relative=True)[0]) == small
+    assert 0.5 * 2 / 0.02 < small < 2 / 0.02  # 4 % of a 0.5 side: 2 cm

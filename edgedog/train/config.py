@@ -95,6 +95,8 @@ Weighting = Literal["one", "exp_neg", "one_minus", "up", "exp"]
 EdgeProfile = Literal["auto", "raw", "thin", "profile"]
 MapCorrection = Literal["none", "calibrated", "shift", "learned"]
 SilhouetteCorrection = Literal["auto", "measured", "none"]
+StopMode = Literal["off", "run", "coarse"]
+"""What convergence ends (see `ScheduleSettings.stop`)."""
 
 
 @dataclass(frozen=True)
@@ -193,6 +195,32 @@ class ScheduleSettings(Settings):
     """Learning rate of the view-dependent opacity's b (`model.view_opacity`), from
     `view_opacity_from_epoch` on."""
     view_opacity_from_epoch: Epoch = 20
+    stop: StopMode = "off"
+    """Stop when done (edgedog.train.convergence): 'run' ends the run at the end of the first
+    epoch from `stop_from_epoch` on at which the primitives have settled (`stop_patience` epochs
+    in a row with no primitives added, their centres' median shift below `stop_shift` and the
+    epoch loss's relative change below `stop_loss_change`, then the Fisher scores' change below
+    `stop_fisher_change`): `epochs` becomes a ceiling, and the density events scheduled after
+    the stop do not happen. 'coarse' ends only the coarse stage: the
+    run skips to `fine_from_epoch` (the epochs and density events between are left out) and
+    trains the fine stage to its end. 'off': every epoch is trained."""
+    stop_from_epoch: Epoch = 0
+    """The first epoch at whose end the run may stop (or the coarse stage end)."""
+    stop_patience: Annotated[int, Range(1, MAX_EPOCHS)] = 3
+    """Epochs in a row that must meet `stop_shift` and `stop_loss_change` with no primitives
+    added by density control (not scaled with `epochs`)."""
+    stop_shift: Annotated[float, Range(0)] = 3e-3
+    """Largest median distance (scene units) the primitives' centres move over an epoch that
+    counts as settled (3e-3: 3 mm of an ABC object; with `quick`'s rates, Adam's step-to-step
+    jitter alone moves settled centres about 2.5 mm per epoch)."""
+    stop_loss_change: Share = 0.1
+    """Largest relative difference of the epoch's mean projection loss from the mean of the last
+    `stop_patience` epochs since primitives were last added that counts as settled."""
+    stop_fisher_change: Share = 1.0
+    """Largest change of the Fisher scores from one epoch to the next that counts as settled,
+    measured once the other tests have held for `stop_patience` epochs (one Fisher pass over the
+    views per epoch): half the L1 distance between the scores normalised to sum 1, the share of
+    the information that moved between primitives. 1: not measured."""
 
 
 @dataclass(frozen=True)
@@ -267,6 +295,31 @@ class StrategySettings(Settings):
     """After each cull the opacity logits are clamped to at most this (EdgeGaussians)."""
     max_primitives: Count = 200_000
     """Duplication never grows the model beyond this."""
+    spacing_epochs: tuple[Epoch, ...] = ()
+    """Epochs after which the primitives are held at `spacing` along the edges
+    (edgedog.train.spacing): of primitives closer than `spacing` along similar directions the
+    one ranked higher by `spacing_keep` stays and the others are removed, and a primitive whose
+    largest scale exceeds `spacing` is split along its major axis. Empty: no spacing control."""
+    spacing: Annotated[float, Range(0, open_low=True)] = 0.01
+    """Target distance between neighbouring primitives along an edge, in scene units (0.01: 1 cm
+    of an ABC object, twice its 5 mm ground-truth spacing), or with `spacing_relative` as a share
+    of the primitives' extent."""
+    spacing_relative: bool = False
+    """`spacing` is a share of the largest side of the box holding the central 98 % of the
+    primitives' centres along each axis (the object's size, whatever its unit)."""
+    spacing_angle: Annotated[float, Range(0, 90)] = 30.0
+    """Largest angle (degrees) between two primitives' major axes for them to cover the same
+    stretch of edge (more: two edges that meet, both kept)."""
+    spacing_neighbours: Annotated[int, Range(1, MAX_NEIGHBOURS)] = 16
+    """Nearest neighbours each primitive is compared with (a KD-tree query): the cost is
+    N log N times this, whatever the density."""
+    spacing_keep: Literal["opacity", "fisher"] = "opacity"
+    """Which of a redundant group stays: the most opaque (largest over the views with a
+    view-dependent opacity), or the largest Fisher score (one Fisher pass over the views)."""
+    spacing_split: bool = True
+    """Split the primitives longer than `spacing` (largest scale above it) into
+    ceil(scale / spacing) pieces, at most `MAX_COPIES`, along their major axis (within
+    `max_primitives`)."""
 
 
 @dataclass(frozen=True)

@@ -1,5 +1,6 @@
 """Density control with explicit state (gsplat's Strategy pattern): EdgeGaussians' duplication
-and culling, and EdgeDoG's primitive-level (Fisher) pruning."""
+and culling, EdgeDoG's primitive-level (Fisher) pruning, and the spacing control that holds
+the primitives at a target spacing along the edges (edgedog.train.spacing)."""
 
 from __future__ import annotations
 
@@ -11,10 +12,11 @@ import torch
 from edgedog.renderer.config import RasterConfig
 from edgedog.renderer.rasterize import RenderOutput, fisher_information
 from edgedog.scenes.camera import Camera
-from edgedog.train.config import TrainConfig
+from edgedog.train.config import MAX_COPIES, TrainConfig
 from edgedog.train.model import EdgeModel
 from edgedog.train.optim import Optimizers
 from edgedog.train.resolution import ViewSet
+from edgedog.train.spacing import redundant, spacing_length, split_offsets, split_pieces
 from edgedog.train.view_opacity import camera_centres, largest_logits, relative_opacity, seen_from
 
 
@@ -60,7 +62,7 @@ def edge_hit_share(points: np.ndarray, pinholes: list[Camera], edge_masks: list[
 
 
 class DensityStrategy:
-    """Decides, at the end of each epoch, which primitives to duplicate, cull or prune."""
+    """Decides, at the end of each epoch, which primitives to duplicate, cull, space or prune."""
 
     def __init__(self, config: TrainConfig, raster: RasterConfig):
         self.settings, self.epochs = config.strategy, config.schedule.epochs
@@ -92,6 +94,8 @@ class DensityStrategy:
             opacity = torch.sigmoid(self._largest_logits(model, views))
             events.append(self._cull(model, optimizers, state, "opacity", opacity < c.cull_opacity_below,
                                      views))
+        if epoch in c.spacing_epochs:
+            events.append(self._space(model, optimizers, state, views))
         if c.primitive_uncertainty and (epoch + 1) % c.fisher_every == 0 and epoch + 1 < self.epochs:
             events.append(self._fisher_prune(model, optimizers, state, views, keep_ratio))
         for event in events:
@@ -161,19 +165,71 @@ class DensityStrategy:
         return edge_hit_share(model.means.detach().double().cpu().numpy(), views.pinholes, views.edge_masks,
                               weights)
 
-    def _fisher_prune(self, model, optimizers, state, views: ViewSet, keep_ratio: float) -> dict:
-        if self.view_opacity:
-            # Each view with the opacities seen from it, per view where the primitive is drawn: a
-            # primitive that few views can see is not ranked below one that all views see.
-            centres = camera_centres(views.cameras, model.device)
-            with torch.no_grad():
-                scores = sum(fisher_information(seen_from(model.primitives(), model.opacity_dirs, centre),
-                                                [camera], self.raster)
-                             for camera, centre in zip(views.cameras, centres))
-                scores = scores / relative_opacity(model.opacity_logits, model.opacity_dirs, model.means,
-                                                   centres).sum(0)
+    def _space(self, model: EdgeModel, optimizers: Optimizers, state: StrategyState, views: ViewSet) -> dict:
+        """Hold the primitives at the target spacing along the edges (edgedog.train.spacing): remove
+        the redundant ones, then split the long ones into new primitives (zero Adam moments)."""
+        c, before = self.settings, len(model)
+        means = model.means.detach().double().cpu().numpy()
+        length = spacing_length(means, c.spacing, c.spacing_relative)
+        if c.spacing_keep == "fisher":
+            rank = self.fisher_scores(model, views)
         else:
-            scores = fisher_information(model.primitives(), views.cameras, self.raster)
+            rank = self._largest_logits(model, views)
+        removed = redundant(means, model.major_axes().detach().double().cpu().numpy(),
+                            rank.double().cpu().numpy(), length, c.spacing_angle, c.spacing_neighbours)
+        kept = torch.nonzero(torch.from_numpy(~removed)).squeeze(1).to(model.device)
+        self._apply(model, optimizers, state, kept)
+        split = 0
+        if c.spacing_split and length > 0:
+            split = self._split(model, optimizers, state, length)
+        return {"event": "spacing", "before": before, "after": len(model), "spacing": round(length, 6),
+                "removed": int(removed.sum()), "split": split}
+
+    def _split(self, model: EdgeModel, optimizers: Optimizers, state: StrategyState, length: float) -> int:
+        """Cut each primitive whose largest scale exceeds `length` into pieces along its major axis
+        (`split_pieces`, within `max_primitives`); returns how many were cut. The pieces are new
+        primitives after the others, with their source's parameters but the centre moved along
+        the axis and the largest scale divided by the pieces."""
+        with torch.no_grad():
+            log_scales = model.log_scales.detach()
+            largest, major = log_scales.max(dim=1)
+            axes = model.major_axes().detach()
+        room = max(0, self.settings.max_primitives - len(model))
+        pieces = split_pieces(largest.exp().double().cpu().numpy(), length, MAX_COPIES, room)
+        cut = torch.from_numpy(pieces > 1).to(model.device)
+        if not bool(cut.any()):
+            return 0
+        sources = torch.nonzero(cut).squeeze(1)
+        repeats = torch.from_numpy(pieces[pieces > 1]).to(model.device)
+        copies = torch.repeat_interleave(sources, repeats)
+        kept = torch.nonzero(~cut).squeeze(1)
+        offsets = torch.from_numpy(split_offsets(pieces[pieces > 1])).to(model.device, torch.float32)
+        moves = torch.zeros(len(kept) + len(copies), 3, device=model.device)
+        moves[len(kept):] = offsets[:, None] * largest[copies].exp()[:, None] * axes[copies]
+        self._apply(model, optimizers, state, torch.cat([kept, copies]), copies_from=len(kept),
+                    means_noise=moves)
+        with torch.no_grad():
+            rows = torch.arange(len(kept), len(model), device=model.device)
+            model.log_scales[rows, major[copies]] -= torch.log(repeats.repeat_interleave(repeats).float())
+        return len(sources)
+
+    def fisher_scores(self, model: EdgeModel, views: ViewSet) -> torch.Tensor:
+        """(N,) each primitive's Fisher information over the views, as the pruning ranks them (no
+        gradient). With a view-dependent opacity, each view renders the opacities seen from it and
+        the sum is divided by the views where the primitive is drawn: a primitive that few views
+        can see is not ranked below one that all views see."""
+        if not self.view_opacity:
+            return fisher_information(model.primitives(), views.cameras, self.raster)
+        centres = camera_centres(views.cameras, model.device)
+        with torch.no_grad():
+            scores = sum(fisher_information(seen_from(model.primitives(), model.opacity_dirs, centre),
+                                            [camera], self.raster)
+                         for camera, centre in zip(views.cameras, centres))
+            return scores / relative_opacity(model.opacity_logits, model.opacity_dirs, model.means,
+                                             centres).sum(0)
+
+    def _fisher_prune(self, model, optimizers, state, views: ViewSet, keep_ratio: float) -> dict:
+        scores = self.fisher_scores(model, views)
         before = len(model)
         keep_count = max(1, int(round(keep_ratio * before)))
         order = torch.argsort(scores, descending=True, stable=True)

@@ -33,6 +33,7 @@ from edgedog.scenes import Scene
 from edgedog.train import losses
 from edgedog.train.checkpoint import CHECKPOINT, model_arrays, read_checkpoint, to_numpy, write_checkpoint
 from edgedog.train.config import TrainConfig, for_detector, from_dict, to_dict
+from edgedog.train.convergence import Convergence
 from edgedog.train.layers import LowerLayers, keep_on_residual, lower_layer_config, residual_maps
 from edgedog.train.model import EdgeModel
 from edgedog.train.optim import Optimizers
@@ -216,6 +217,9 @@ class Trainer:
         self._epoch_losses: list[float] = []
         self._order = torch.zeros(0, dtype=torch.long)
         self.latest_snapshot: Snapshot | None = None
+        # The convergence test (schedule.stop), and where it ended the run (None: not stopped).
+        self.convergence = None if config.schedule.stop == "off" else Convergence()
+        self.stopped: dict | None = None
         if (self.out / CHECKPOINT).exists():
             self._load(self.out / CHECKPOINT)
         else:
@@ -281,7 +285,8 @@ class Trainer:
 
     @property
     def done(self) -> bool:
-        return self.epoch >= self.config.schedule.epochs
+        """Whether the run is over: its last epoch trained, or stopped when converged."""
+        return self.stopped is not None or self.epoch >= self.config.schedule.epochs
 
     def step(self) -> float:
         """One view: render, loss, backward, Adam; density control at the end of an epoch.
@@ -382,17 +387,49 @@ class Trainer:
     def _end_epoch(self, epoch: int, keep_ratio: float) -> None:
         before = len(self.model)
         started = time.perf_counter()
+        centres = None if self.convergence is None else self.model.means.detach().clone()
         with record_function("density control"):
             events = self.strategy.at_epoch_end(epoch, self.model, self.optimizers, self.state, self.views,
                                                 self.generator, keep_ratio)
-        self.seconds += time.perf_counter() - started
         self.events += events
-        self.history.append({"epoch": epoch, "loss": float(np.mean(self._epoch_losses)),
-                             "primitives_before_events": before, "primitives": len(self.model),
-                             "seconds": round(self.seconds, 2)})
-        if (epoch + 1) % self.config.run.checkpoint_every == 0 or epoch + 1 == self.config.schedule.epochs:
+        entry = {"epoch": epoch, "loss": float(np.mean(self._epoch_losses)),
+                 "primitives_before_events": before, "primitives": len(self.model)}
+        if self.convergence is not None:
+            with record_function("convergence"):
+                added = any(e["after"] > e["before"] or e.get("split", 0) > 0 for e in events)
+                entry.update(self._settle(epoch, centres, entry["loss"], added))
+        self.seconds += time.perf_counter() - started
+        self.history.append({**entry, "seconds": round(self.seconds, 2)})
+        if ((epoch + 1) % self.config.run.checkpoint_every == 0 or epoch + 1 == self.config.schedule.epochs
+                or self.stopped is not None):
             with record_function("checkpoint"):
                 self.save_checkpoint()
+
+    def _settle(self, epoch: int, centres: torch.Tensor, loss: float, added: bool) -> dict:
+        """The convergence test at the end of `epoch` (edgedog.train.convergence); when it has
+        converged from `schedule.stop_from_epoch` on, end the run ('run': `stopped` is set) or
+        the coarse stage ('coarse': the next step is the first of `schedule.fine_from_epoch`),
+        with an event saying so. Returns the epoch's record for the history.
+
+        Args:
+            centres: (N, 3) the centres before the epoch's density events; `added`: whether
+                those events added primitives.
+        """
+        s = self.config.schedule
+        views = self.views_at(epoch)
+        record = self.convergence.update(s, centres, loss, added, self.model.means,
+                                         lambda: self.strategy.fisher_scores(self.model, views))
+        if not record["converged"] or epoch < s.stop_from_epoch or epoch + 1 >= s.epochs:
+            return record
+        if s.stop == "run":
+            self.stopped = {"epoch": epoch, "ceiling": s.epochs, "reason": "converged"}
+            self.events.append({"event": "converged", "ended": "run", "epoch": epoch})
+        elif epoch + 1 < s.fine_from_epoch:
+            self.events.append({"event": "converged", "ended": "coarse stage",
+                                "skipped_to": s.fine_from_epoch, "epoch": epoch})
+            self.step_index = s.fine_from_epoch * len(self.cameras)
+            self.convergence.restart()
+        return record
 
     def run(self) -> None:
         """Train to the end (resuming where a checkpoint left off), then write the outputs."""
@@ -431,6 +468,8 @@ class Trainer:
             "lower": self.lower.to_numpy(),
             "lower_optimizers": None if self.lower_optimizers is None else self.lower_optimizers.state_dict(),
             "learned_shift": None if self.learned_shift is None else self.learned_shift.state_dict(),
+            "convergence": None if self.convergence is None else self.convergence.state_dict(),
+            "stopped": self.stopped,
         }
         return write_checkpoint(self.out / CHECKPOINT, payload)
 
@@ -466,6 +505,9 @@ class Trainer:
         self.history, self.events = saved["history"], saved["events"]
         self.seconds, self.bad_gradients = float(saved["seconds"]), int(saved["bad_gradients"])
         self.init_report, self.initial_count = saved["init_report"], int(saved["initial_count"])
+        if self.convergence is not None:  # the same config: a checkpoint written with the test on
+            self.convergence = Convergence.from_state_dict(saved["convergence"], self.device)
+            self.stopped = saved["stopped"]
 
     def shift_px(self) -> list[float]:
         """The maps' total correction shift (dx, dy) in px at the training resolution: the fixed
@@ -494,4 +536,5 @@ class Trainer:
                              if self.device.type == "cuda" else None),
             "non_finite_gradients_zeroed": self.bad_gradients, "events": self.events,
             "history": self.history,
+            **({} if self.convergence is None else {"stopped": self.stopped}),
         })
