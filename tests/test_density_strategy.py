@@ -12,7 +12,10 @@ from edgedog.renderer.config import RasterConfig
 from edgedog.train.config import TrainConfig, with_settings
 from edgedog.train.model import EdgeModel
 from edgedog.train.optim import Optimizers
+from edgedog.train.spacing import redundant
 from edgedog.train.strategy import DensityStrategy
+from edgedog.train.trainer import Trainer
+from tests.helpers.tiny_runs import every_fifth_view, tiny_config
 
 N = 10
 # Normalised by its range (0 to 10), above the 0.5 threshold at 6, 8, 9 and 10: rows 2, 4, 6 and 9.
@@ -180,3 +183,25 @@ def test_relative_spacing_follows_the_objects_size():
         big.log_scales.add_(float(np.log(10)))
     assert len(spaced(big, spacing=0.04, spacing_relative=True)[0]) == small
     assert 0.5 * 2 / 0.02 < small < 2 / 0.02  # 4 % of a 0.5 side: 2 cm
+
+
+@pytest.mark.parametrize("keep", ["opacity", "fisher"])
+def test_spacing_in_a_run_keeps_the_best_ranked(builtin_scene_dir, tmp_path, keep):
+    # A spacing event on the primitives of a tiny run on the box after one epoch: it keeps those
+    # `redundant` keeps when ranked by the opacity or the Fisher scores the strategy computes.
+    scene = every_fifth_view(builtin_scene_dir)
+    config = tiny_config(spacing_epochs=(1,), spacing=0.05, spacing_keep=keep, spacing_split=False)
+    trainer = Trainer(scene, config, tmp_path / "run", progress=False)
+    while trainer.epoch < 1:
+        trainer.step()
+    model = trainer.model
+    rank = (trainer.strategy.fisher_scores(model, trainer.views) if keep == "fisher"
+            else model.opacity_logits.detach())
+    removed = redundant(model.means.detach().double().numpy(), model.major_axes().detach().double().numpy(),
+                        rank.double().numpy(), 0.05, 30.0, 16)
+    expected = model.means.detach()[torch.from_numpy(~removed)]
+    events = trainer.strategy.at_epoch_end(1, model, trainer.optimizers, trainer.state, trainer.views,
+                                           trainer.generator, keep_ratio=1.0)
+    assert events == [{"event": "spacing", "before": len(removed), "after": len(expected), "spacing": 0.05,
+                       "removed": int(removed.sum()), "split": 0, "epoch": 1}]
+    assert 0 < removed.sum() < len(removed) and torch.equal(model.means.detach(), expected)
