@@ -3,13 +3,23 @@ curve sets it aligns (synthetic: no SfM, no training, no shared data)."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from edgedog.bench.sfm_cameras import camera_similarity, curve_distances, markdown, object_size
+from edgedog.bench.sfm_cameras import (
+    axis_angles,
+    camera_centres,
+    camera_similarity,
+    curve_distances,
+    markdown,
+    object_size,
+)
 from edgedog.curve_files import EdgeCurves
 from edgedog.metrics import SAMPLE_SPACING
+from edgedog.scenes import Camera, Scene, View
 
 
 def _similarity(scale: float, rotation: np.ndarray, translation: np.ndarray) -> np.ndarray:
@@ -82,7 +92,7 @@ def test_the_table_names_every_direction_and_set():
     points = _curves().sample(SAMPLE_SPACING)
     size = object_size(points)
     record = {"registered": 11, "views": 12, "size": [800, 600], "preset": "quick", "object_size": size,
-              "similarity": {"scale": 2.7, "matched": 11,
+              "similarity": {"scale": 2.7, "matched": 11, "axis_angle_deg": {"median": 0.5, "max": 0.8},
                              "centre_residual": {"median": 0.001, "max": 0.01, "rms": 0.002}},
               "distances": {"all": curve_distances(points, points, size),
                             "on_object": curve_distances(points[:0], points, size)}}
@@ -92,3 +102,31 @@ def test_the_table_names_every_direction_and_set():
     assert "SfM registered 11 of 12 photos" in table
     assert "| all | SfM -> cameras |" in table and "| on object | both |" in table
     assert "| on object | SfM -> cameras | 0 | – |" in table  # no samples: no distance
+
+
+def _scene(cameras: dict[str, tuple[np.ndarray, np.ndarray]]) -> Scene:
+    """A scene of 64 px views from name -> (rotation (3, 3) world to camera, centre (3,))."""
+    views = []
+    for name, (rotation, centre) in cameras.items():
+        w2c = np.eye(4)
+        w2c[:3, :3] = rotation
+        w2c[:3, 3] = -rotation @ centre
+        views.append(View(name, Camera(np.array([[60.0, 0, 31.5], [0, 60.0, 31.5], [0, 0, 1]]), w2c, 64, 64),
+                          Path(f"{name}.png")))
+    return Scene(root=Path("."), format="colmap", views=views, bounds=np.array([[-1.0] * 3, [1.0] * 3]))
+
+
+def test_axis_angles_are_what_the_similarity_leaves_of_the_orientations():
+    turn = Rotation.from_euler("xyz", [10, 20, 30], degrees=True).as_matrix()
+    known = {name: (Rotation.from_rotvec(np.random.default_rng(i).normal(size=3)).as_matrix(), centre)
+             for i, (name, centre) in enumerate(_known_cameras(6).items())}
+    # SfM's frame turned by `turn` (x_sfm = turn @ x_known): its w2c rotations are R @ turn.T.
+    sfm = {name: (rotation @ turn.T, turn @ centre) for name, (rotation, centre) in known.items()}
+    tilt = Rotation.from_euler("x", 2.0, degrees=True).as_matrix()
+    sfm["000002"] = (tilt @ sfm["000002"][0], sfm["000002"][1])  # one camera tilted by 2 degrees
+    source, target = _scene(sfm), _scene(known)
+
+    angles = axis_angles(source, target, camera_similarity(camera_centres(source), camera_centres(target)))
+
+    assert angles[2] == pytest.approx(2.0, abs=1e-6)
+    assert np.delete(angles, 2).max() < 1e-6

@@ -89,6 +89,18 @@ def camera_centres(scene: Scene) -> dict[str, np.ndarray]:
     return {view.name: view.camera.center for view in scene.views}
 
 
+def axis_angles(source: Scene, target: Scene, similarity: Similarity) -> np.ndarray:
+    """(N,) the angle, in degrees, between each matched view's optical axis in `target` and its
+    axis in `source` turned by `similarity`: what the similarity of the centres leaves of the
+    cameras' orientations (e.g. a principal point that SfM kept at the image's centre)."""
+    forward = {view.name: view.camera.forward for view in source.views}
+    known = {view.name: view.camera.forward for view in target.views}
+    turned = np.array([similarity.rotation @ forward[name] for name in similarity.names]).reshape(-1, 3)
+    axes = np.array([known[name] for name in similarity.names]).reshape(-1, 3)
+    sines = np.linalg.norm(np.cross(turned, axes), axis=1)
+    return np.degrees(np.arctan2(sines, np.sum(turned * axes, axis=1)))
+
+
 def distance_summary(distances: np.ndarray, size: float) -> dict[str, float | None]:
     """The median and 90th percentile of `distances` (N,), and each as a share of `size`."""
     if len(distances) == 0:
@@ -176,6 +188,8 @@ def run_sfm_vs_cameras(scene_path: Path, out: Path, preset_name: str, config: Tr
     similarity = camera_similarity(camera_centres(sfm), camera_centres(known))
     record = compare_runs(out / CAMERAS_RUN, out / SFM_RUN, similarity,
                           load_scene(scene_path, downscale=downscale))
+    angles = axis_angles(sfm, known, similarity)
+    record["similarity"]["axis_angle_deg"] = {"median": float(np.median(angles)), "max": float(angles.max())}
     record.update({"scene": str(known.root), "sfm_scene": str(sfm.root), "preset": preset_name,
                    "views": len(known), "registered": len(sfm), "downscale": downscale,
                    "size": [known.camera(0).width // downscale, known.camera(0).height // downscale],
@@ -226,7 +240,9 @@ def markdown(record: dict) -> str:
     lines = [f"SfM registered {record['registered']} of {record['views']} photos; both runs at "
              f"{record['size'][0]}x{record['size'][1]} ({record['preset']}). Camera centres after the "
              f"similarity (scale {fit['scale']:.4g}, {fit['matched']} matched): residual median "
-             f"{res['median']:.4g}, max {res['max']:.4g} scene units. Object size (1st-99th percentile box "
+             f"{res['median']:.4g}, max {res['max']:.4g} scene units; optical axes apart by "
+             f"{fit['axis_angle_deg']['median']:.2f}° (median), {fit['axis_angle_deg']['max']:.2f}° (max). "
+             f"Object size (1st-99th percentile box "
              f"diagonal of the known-camera curves): {size:.4g} scene units.", "",
              "| samples | direction | points | median | median / size | p90 | p90 / size |",
              "|---|---|---|---|---|---|---|"]
