@@ -157,22 +157,24 @@ def test_spacing_keeps_the_most_opaque_and_both_edges_that_meet():
 
 
 def test_spacing_splits_a_primitive_longer_than_the_spacing():
-    long = EdgeModel(torch.tensor([[0.5, 0.5, 0.5], [0.0, 0.0, 0.0]]),
-                     torch.log(torch.tensor([[0.05, 0.002, 0.002], [0.005, 0.002, 0.002]])),
-                     torch.tensor([[1.0, 0, 0, 0]] * 2), torch.zeros(2), torch.zeros(2, 2)).requires_grad_()
+    # A long one, a short one, and a large round one (its size is no length of edge).
+    scales = torch.tensor([[0.05, 0.002, 0.002], [0.005, 0.002, 0.002], [0.05, 0.03, 0.03]])
+    long = EdgeModel(torch.tensor([[0.5, 0.5, 0.5], [0.0, 0.0, 0.0], [-0.5, 0.0, 0.0]]), torch.log(scales),
+                     torch.tensor([[1.0, 0, 0, 0]] * 3), torch.zeros(3), torch.zeros(3, 2)).requires_grad_()
     optimizers = Optimizers(long, with_settings(TrainConfig(), {}))
     for tensor in long.tensors().values():
         tensor.grad = torch.ones_like(tensor)
     optimizers.step()
     model, events, optimizers = spaced(long, optimizers, spacing=0.02)
     # ceil(0.05 / 0.02) = 3 pieces along x at -2/3, 0, 2/3 of the scale, each a third as long.
-    assert events[0]["split"] == 1 and len(model) == 4
-    torch.testing.assert_close(model.means.detach()[1:, 0], torch.tensor([0.5 - 0.1 / 3, 0.5, 0.5 + 0.1 / 3]))
-    torch.testing.assert_close(model.log_scales.detach()[1:].exp(),
+    assert events[0]["split"] == 1 and len(model) == 5
+    torch.testing.assert_close(model.means.detach()[2:, 0], torch.tensor([0.5 - 0.1 / 3, 0.5, 0.5 + 0.1 / 3]))
+    torch.testing.assert_close(model.log_scales.detach()[2:].exp(),
                                torch.tensor([[0.05 / 3, 0.002, 0.002]] * 3))
-    assert torch.equal(model.means.detach()[0], torch.zeros(3))  # the short one stays as it was
+    # The short and the round ones stay as they were.
+    assert torch.equal(model.means.detach()[:2], torch.tensor([[0.0, 0.0, 0.0], [-0.5, 0.0, 0.0]]))
     moments = optimizers.adams["means"].state[model.means]["exp_avg"]
-    assert moments[0].abs().min() > 0 and not moments[1:].any()  # the pieces start afresh
+    assert moments[:2].abs().min() > 0 and not moments[2:].any()  # the pieces start afresh
 
 
 def test_relative_spacing_follows_the_objects_size():

@@ -298,8 +298,9 @@ class StrategySettings(Settings):
     spacing_epochs: tuple[Epoch, ...] = ()
     """Epochs after which the primitives are held at `spacing` along the edges
     (edgedog.train.spacing): of primitives closer than `spacing` along similar directions the
-    one ranked higher by `spacing_keep` stays and the others are removed, and a primitive whose
-    largest scale exceeds `spacing` is split along its major axis. Empty: no spacing control."""
+    one ranked higher by `spacing_keep` stays and the others are removed, and an elongated
+    primitive whose largest scale exceeds `spacing` is split along its major axis (`spacing_split`).
+    Empty: no spacing control."""
     spacing: Annotated[float, Range(0, open_low=True)] = 0.01
     """Target distance between neighbouring primitives along an edge, in scene units (0.01: 1 cm
     of an ABC object, twice its 5 mm ground-truth spacing), or with `spacing_relative` as a share
@@ -317,9 +318,9 @@ class StrategySettings(Settings):
     """Which of a redundant group stays: the most opaque (largest over the views with a
     view-dependent opacity), or the largest Fisher score (one Fisher pass over the views)."""
     spacing_split: bool = True
-    """Split the primitives longer than `spacing` (largest scale above it) into
-    ceil(scale / spacing) pieces, at most `MAX_COPIES`, along their major axis (within
-    `max_primitives`)."""
+    """Split the elongated primitives (largest scale at least twice the second) longer than
+    `spacing` (largest scale above it) into ceil(scale / spacing) pieces, at most `MAX_COPIES`,
+    along their major axis (within `max_primitives`)."""
 
 
 @dataclass(frozen=True)

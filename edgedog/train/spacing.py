@@ -9,8 +9,8 @@ A spacing event (`DensityStrategy`, at `strategy.spacing_epochs`) does two thing
   nearest neighbours from a KD-tree, O(N k log N) whatever the density, repeated on the
   survivors where more than k crowd within the spacing. Two edges that meet at an angle keep
   both.
-- `split_pieces`: a primitive longer than the spacing (its largest scale above it) is cut into
-  pieces along its major axis (`split_offsets` places them).
+- `split_pieces`: an elongated primitive longer than the spacing (its largest scale above it) is
+  cut into pieces along its major axis (`split_offsets` places them).
 
 Along an edge of length L covered densely, about L / spacing primitives stay.
 """
@@ -98,18 +98,26 @@ def _suppressed(means: np.ndarray, axes: np.ndarray, rank: np.ndarray, spacing: 
     return np.frombuffer(bytes(state), dtype=np.uint8) == removed
 
 
-def split_pieces(largest_scale: np.ndarray, spacing: float, most: int, room: int) -> np.ndarray:
-    """(N,) pieces each primitive is cut into: ceil(largest scale / spacing), at most `most`, 1
-    for a primitive no longer than `spacing`. The longest are cut first while the pieces add at
-    most `room` primitives; the others stay whole.
+ELONGATED = 2.0
+"""A primitive is cut only when its largest scale is at least this many times its second: the
+major axis of a round one is no edge direction, and its size is no length of edge."""
+
+
+def split_pieces(scales: np.ndarray, spacing: float, most: int, room: int) -> np.ndarray:
+    """(N,) pieces each primitive is cut into: ceil(largest scale / spacing), at most `most`, for
+    an `ELONGATED` one; 1 for one no longer than `spacing` or not elongated. The longest are cut
+    first while the pieces add at most `room` primitives; the others stay whole.
 
     Args:
-        largest_scale: (N,) each primitive's largest scale (scene units).
+        scales: (N, 3) each primitive's scales (scene units).
     """
-    pieces = np.ones(len(largest_scale), dtype=np.int64)
-    if spacing <= 0:
+    pieces = np.ones(len(scales), dtype=np.int64)
+    if spacing <= 0 or not len(scales):
         return pieces
+    ordered = np.sort(scales, axis=1)
+    largest_scale = ordered[:, 2]
     wanted = np.clip(np.ceil(largest_scale / spacing), 1, most).astype(np.int64)
+    wanted[largest_scale < ELONGATED * ordered[:, 1]] = 1
     order = np.argsort(-largest_scale, kind="stable")
     extra = np.cumsum(wanted[order] - 1)
     fits = order[extra <= room]

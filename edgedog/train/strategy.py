@@ -186,8 +186,8 @@ class DensityStrategy:
                 "removed": int(removed.sum()), "split": split}
 
     def _split(self, model: EdgeModel, optimizers: Optimizers, state: StrategyState, length: float) -> int:
-        """Cut each primitive whose largest scale exceeds `length` into pieces along its major axis
-        (`split_pieces`, within `max_primitives`); returns how many were cut. The pieces are new
+        """Cut each elongated primitive whose largest scale exceeds `length` into pieces along its
+        major axis (`split_pieces`, within `max_primitives`); returns how many were cut. The pieces are new
         primitives after the others, with their source's parameters but the centre moved along
         the axis and the largest scale divided by the pieces."""
         with torch.no_grad():
@@ -195,7 +195,7 @@ class DensityStrategy:
             largest, major = log_scales.max(dim=1)
             axes = model.major_axes().detach()
         room = max(0, self.settings.max_primitives - len(model))
-        pieces = split_pieces(largest.exp().double().cpu().numpy(), length, MAX_COPIES, room)
+        pieces = split_pieces(log_scales.exp().double().cpu().numpy(), length, MAX_COPIES, room)
         cut = torch.from_numpy(pieces > 1).to(model.device)
         if not bool(cut.any()):
             return 0
