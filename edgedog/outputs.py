@@ -6,8 +6,8 @@
   replaced with `--force` where the command has it (replacing is then what the user asked for).
   A command's own default output (export's RUN/curves_world.obj) is replaced as before.
 - Inside a run folder, never over the run's own files, whatever --force says, and only while
-  holding the run's lock (`RunLock`): no command writes into a run that another process trains,
-  resumes or extracts.
+  holding the run's lock (`RunLock`, taken by `edgedog.train.lifecycle.lock_folder`): no command
+  writes into a run that another process trains, resumes or extracts.
 """
 
 from __future__ import annotations
@@ -19,14 +19,14 @@ from pathlib import Path
 
 from edgedog.errors import InputError, OutputError
 from edgedog.files import read_json
-from edgedog.train.run_folder import LOCK_FILE, RunLock, check_outside_scenes, is_run_folder
+from edgedog.train.run_folder import LOCK_FILE, check_outside_scenes
 
 
 def _is_run(folder: Path) -> bool:
-    """A run of ours, or a layered run's top folder."""
-    from edgedog.train.layered import is_layered  # loads the scene readers (cv2): only when asked
+    """A run of ours, or a layered run's top folder (`holds_run`)."""
+    from edgedog.train.lifecycle import holds_run  # loads the scene readers (cv2): only when asked
 
-    return is_run_folder(folder) or is_layered(folder)
+    return holds_run(folder)
 
 
 def enclosing_run(path: str | Path) -> Path | None:
@@ -70,11 +70,13 @@ def check_new_file(path: str | Path, force: bool | None = False, default: Path |
 def output_file(path: str | Path, force: bool | None = False, default: Path | None = None) -> Iterator[Path]:
     """Within it, the file `path` may be written (`check_new_file`, checked again under the lock
     of the run folder it lies in, held throughout)."""
+    from edgedog.train.lifecycle import lock_folder
+
     run = check_new_file(path, force, default)
     if run is None:
         yield Path(path)
         return
-    with RunLock.acquire(run):
+    with lock_folder(run):
         check_new_file(path, force, default)  # the run's writer may have made it meanwhile
         yield Path(path)
 

@@ -17,7 +17,7 @@ from edgedog.renderer.primitives import RasterCamera
 from edgedog.renderer.rasterize import rasterize
 
 from edgedog.edges.registry import make_detector
-from edgedog.errors import ConfigError
+from edgedog.errors import ConfigError, InputError
 from edgedog.scenes import load_scene
 from edgedog.train.config import with_settings
 from edgedog.train.layers import LowerLayers
@@ -168,6 +168,22 @@ def test_layered_run_resumes_extracts_and_exports(layered_run, builtin_scene_dir
     assert bad.returncode == 2 and "no layer selection 'L7'" in bad.stderr
     wrong = edgedog("train", builtin_scene_dir, "--out", tmp_path / "x", "--layers", "L1,L2")
     assert wrong.returncode == 2 and "stack from L0 up" in wrong.stderr
+
+
+@pytest.mark.slow
+def test_a_layered_run_answers_the_record_api_as_its_layers_do(layered_run):
+    """What the folder records and where each selection's curves are, with the bottom layer's
+    log.json naming their scene; each layer is a run of one layer."""
+    from edgedog.train.lifecycle import LAYERED_RUN, SINGLE_RUN, curves_of, read_record, record_kind
+
+    run, _ = layered_run
+    assert (record_kind(run), record_kind(run / "L1")) == (LAYERED_RUN, SINGLE_RUN)
+    assert curves_of(run) == (run / "curves" / "L0+L1", run / "L0")
+    assert read_record(run).curves_folder == run / "curves" / "L0+L1"
+    assert curves_of(run, "L1") == (run / "curves" / "L1", run / "L0")
+    assert curves_of(run / "L1") == (run / "L1", run / "L1")
+    with pytest.raises(InputError, match="no layer selection 'L7'; choose from L0, L1, L0\\+L1"):
+        curves_of(run, "L7")
 
 
 @pytest.mark.slow

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import os
 import pickle
 import shutil
 from pathlib import Path
@@ -33,7 +34,7 @@ from edgedog.train.lifecycle import (
     is_finished,
     plan_run,
 )
-from edgedog.train.run_folder import RunFolder, read_run, write_run
+from edgedog.train.run_folder import LOCK_FILE, RunFolder, lock_holder, read_run, write_run
 from edgedog.train.trainer import Trainer
 from tests.helpers.bad_inputs import edgedog
 
@@ -103,6 +104,29 @@ def test_a_report_of_other_extraction_settings_is_extracted_again(finished, smal
     assert plan_run(out, small_box_scene, "preview", config(), REUSE).extracted
     (out / REPORT).write_text("{not json")
     assert not plan_run(out, small_box_scene, "preview", config(), REUSE).extracted
+
+
+def test_a_run_of_one_layer_answers_the_record_api(finished, tmp_path):
+    """`open_record` reads the run under its lock (taking none in a folder that records no run);
+    its extraction writes what the run's own extraction wrote; `curves_of` finds its curves, and a
+    folder of curves that records no run holds its own."""
+    out = tmp_path / "copy"
+    shutil.copytree(finished, out)
+    (tmp_path / "curves").mkdir()
+    assert (lifecycle.record_kind(out), lifecycle.record_kind(tmp_path)) == (lifecycle.SINGLE_RUN, "")
+    assert lifecycle.curves_of(out) == (out, out)
+    assert lifecycle.curves_of(tmp_path / "curves") == (tmp_path / "curves", tmp_path / "curves")
+    with pytest.raises(InputError, match="--layers needs a layered run"):
+        lifecycle.curves_of(out, "L0")
+    with pytest.raises(InputError, match="is not an edgedog run folder"), lifecycle.open_record(tmp_path):
+        pass
+    assert not (tmp_path / LOCK_FILE).exists()
+    written = {name: (out / name).read_bytes() for name in ("curves.json", "edge_points.ply", REPORT)}
+    with lifecycle.open_record(out) as record:
+        assert lock_holder(out) == str(os.getpid()) and record == read_run(out)
+        record.extract(record.extraction_scene(ExtractConfig()), ExtractConfig())
+    assert lock_holder(out) is None
+    assert {name: (out / name).read_bytes() for name in written} == written
 
 
 def test_refused_plans_say_why(small_box_scene, tmp_path):

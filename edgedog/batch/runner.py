@@ -21,8 +21,7 @@ from edgedog.batch.suite import RunSpec
 from edgedog.batch.table import BATCH_FILES, write_tables
 from edgedog.errors import ConfigError, InputError
 from edgedog.outputs import check_output_folder
-from edgedog.train.lifecycle import REUSE, plan_run
-from edgedog.train.run_folder import RunLock
+from edgedog.train.lifecycle import REUSE, lock_folder, plan_run
 
 
 class Executor(Protocol):
@@ -75,7 +74,7 @@ def run_batch(specs: list[RunSpec], out: Path, executor: Executor, suite_path: P
     (`check_output_folder`)."""
     out = Path(out).resolve()
     check_output_folder(out, own_files)
-    with RunLock.acquire(out):
+    with lock_folder(out):
         jobs = plan_jobs(specs, out, suite_path, task)
         outcomes: dict[str, RunOutcome] = {}
         left = []

@@ -13,7 +13,6 @@ from edgedog.files import atomic_write_bytes, atomic_write_json, read_json
 from edgedog.settings import with_values
 from edgedog.train.config import TrainConfig
 from edgedog.train.levels import Level
-from edgedog.train.run_folder import RunLock
 
 DIRECT = "direct"
 LAYERS_FILES = ("layers.json", "layers.md", "layers.png")
@@ -30,7 +29,9 @@ def run_layers_bench(scene_path: Path, out: Path, preset_name: str, base: TrainC
                      levels: tuple[Level, ...], progress: bool = True, figure: bool = True) -> dict:
     """Train (or reuse) the layered run and the direct run, extract, score; write
     OUT/layers.json, OUT/layers.md and (with `figure`) OUT/layers.png. Returns the results."""
-    with RunLock.acquire(out):
+    from edgedog.train.lifecycle import lock_folder
+
+    with lock_folder(out):
         return _layers_bench(scene_path, out, preset_name, base, levels, progress, figure)
 
 

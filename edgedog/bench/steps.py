@@ -120,12 +120,11 @@ def run_steps_bench(scene_path: Path, out: Path, preset_name: str, config: Train
                     window_steps: int, progress: bool = True) -> StepProfile:
     """Train `config` on the scene into OUT/run (a new folder) with the profiler's windows, and
     write OUT/steps.json and OUT/steps.md."""
-    from edgedog.train.lifecycle import START, plan_run
+    from edgedog.train.lifecycle import START, lock_folder, plan_run
     from edgedog.train.run import open_run
-    from edgedog.train.run_folder import RunLock
 
     plan = plan_run(out / "run", scene_path, preset_name, config, START).check()
-    with RunLock.acquire(out), open_run(plan, progress) as run:
+    with lock_folder(out), open_run(plan, progress) as run:
         result = profile_training(run, windows, window_steps)
         camera = run.scene.camera(0)
         summary = {"scene": str(run.scene.root), "preset": preset_name, "views": len(run.scene),

@@ -33,18 +33,9 @@ def run(args: argparse.Namespace) -> None:
     from edgedog.curve_files import read_edges, write_edges
     from edgedog.curves.extract import run_scene
     from edgedog.outputs import output_file
-    from edgedog.train.layered import is_layered, read_layered, selections
+    from edgedog.train.lifecycle import curves_of
 
-    folder, frame_run = args.run_dir, args.run_dir
-    if is_layered(args.run_dir):
-        run = read_layered(args.run_dir)
-        names = [name for name, _ in selections(len(run.levels))]
-        name = args.layers or names[-1]
-        if name not in names:
-            raise InputError(args.run_dir, f"no layer selection {name!r}; choose from {', '.join(names)}")
-        folder, frame_run = args.run_dir / "curves" / name, run.layer_dir(0)
-    elif args.layers:
-        raise InputError(args.run_dir, "--layers needs a layered run (edgedog train --layers)")
+    folder, frame_run = curves_of(args.run_dir, args.layers)
     source = folder / "curves.json"
     if not source.is_file():
         raise InputError(source, "no curves yet: run `edgedog extract RUN` first")

@@ -6,7 +6,6 @@ import argparse
 from pathlib import Path
 
 from edgedog.commands.reports import print_layers_report, print_report
-from edgedog.errors import InputError
 
 
 def add_parser(subparsers) -> None:
@@ -28,32 +27,25 @@ def add_parser(subparsers) -> None:
 
 def run(args: argparse.Namespace) -> None:
     from edgedog.curves.config import ExtractConfig, with_overrides
-    from edgedog.curves.extract import OUTPUTS, run_scene
-    from edgedog.curves.report import REPORT, extract_with_report
-    from edgedog.train.layered import is_layered
-    from edgedog.train.run_folder import RunLock, is_run_folder
+    from edgedog.train.lifecycle import open_record
 
-    if not args.run_dir.is_dir():
-        raise InputError(args.run_dir, "run folder not found")
     config = with_overrides(ExtractConfig(), args.overrides)
-    if is_layered(args.run_dir):
-        with RunLock.acquire(args.run_dir):
-            return extract_layered_run(args.run_dir, config)
-    if not is_run_folder(args.run_dir):
-        raise InputError(args.run_dir, "is not an edgedog run folder (no config.json of ours)")
-    with RunLock.acquire(args.run_dir):
-        scene, detector = run_scene(args.run_dir, maps=config.filter_projection)
-        _, report = extract_with_report(args.run_dir, scene, detector, config)
+    with open_record(args.run_dir) as record:
+        report = record.extract(record.extraction_scene(config), config)
+    print_extraction(args.run_dir, report)
+
+
+def print_extraction(path: Path, report: dict) -> None:
+    """The extraction's table and the files written: a layered run's report holds every
+    selection's (curves per layer and per cumulative stack, in RUN/curves/NAME)."""
+    from edgedog.curves.extract import OUTPUTS
+    from edgedog.curves.report import REPORT
+    from edgedog.train.layered import REPORT as LAYERS_REPORT
+
+    if "selections" in report:
+        print_layers_report(report)
+        names = ", ".join(report["selections"])
+        print(f"wrote {path / 'curves'}/NAME/ for {names} and {path / LAYERS_REPORT}")
+        return
     print_report(report)
-    print(f"wrote {', '.join(OUTPUTS + (REPORT,))} in {args.run_dir}")
-
-
-def extract_layered_run(path: Path, config) -> None:
-    """Every layer alone and every cumulative stack of a layered run, with a table."""
-    from edgedog.scenes import load_scene
-    from edgedog.train.layered import REPORT, extract_layered, read_layered
-
-    run = read_layered(path)
-    report = extract_layered(run, load_scene(run.scene, downscale=run.base.maps.downscale), config)
-    print_layers_report(report)
-    print(f"wrote {path / 'curves'}/NAME/ for {', '.join(report['selections'])} and {path / REPORT}")
+    print(f"wrote {', '.join(OUTPUTS + (REPORT,))} in {path}")

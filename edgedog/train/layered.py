@@ -10,8 +10,9 @@ Layout of RUN (each layer folder is an ordinary run folder, so `edgedog extract`
     RUN/layers_report.json      counts and scores of every selection
 
 A `LayeredRun` answers what a `RunFolder` answers (path, scene, preset, config, fingerprints,
-`layers()`, `curves_folder`, `report_file`, `extract()`, `write()`), so a caller holding either
-holds a stack of layers: a run folder is a stack of one. `edgedog.train.run` trains them.
+`layers()`, `curves_folder`, `selection_folder()`, `report_file`, `extraction_scene()`,
+`extract()`, `write()`), so a caller holding either holds a stack of layers: a run folder is a
+stack of one. `edgedog.train.run` trains them.
 """
 
 from __future__ import annotations
@@ -25,7 +26,7 @@ from edgedog.edges.cache import attach_edge_maps
 from edgedog.errors import InputError
 from edgedog.files import atomic_write_json, read_json
 from edgedog.primitives import read_ply
-from edgedog.scenes import Scene
+from edgedog.scenes import Scene, load_scene
 from edgedog.settings import with_values
 from edgedog.train.config import DEFAULT_PRESET, PRESETS_RENAMED, TrainConfig, from_dict, is_flat, to_dict
 from edgedog.train.levels import Level
@@ -58,7 +59,7 @@ class LayeredRun:
     @property
     def curves_folder(self) -> Path:
         """Where the curves of the whole model are: the cumulative selection of every layer."""
-        return self.path / "curves" / selections(len(self.levels))[-1][0]
+        return self.selection_folder()
 
     def layer_dir(self, index: int) -> Path:
         return self.path / self.levels[index].name
@@ -79,9 +80,23 @@ class LayeredRun:
         """The extraction's report: every selection's (layers_report.json)."""
         return self.path / REPORT
 
-    def extract(self, scene: Scene) -> dict:
+    def extraction_scene(self, config: ExtractConfig) -> Scene:
+        """The scene as layers.json records it, at the run's resolution (each selection's maps
+        are attached as it is extracted)."""
+        return load_scene(self.scene, downscale=self.base.maps.downscale)
+
+    def extract(self, scene: Scene, config: ExtractConfig = ExtractConfig()) -> dict:
         """Extract every selection (`extract_layered`); returns the report."""
-        return extract_layered(self, scene)
+        return extract_layered(self, scene, config)
+
+    def selection_folder(self, name: str | None = None) -> Path:
+        """Where the curves of the selection `name` are (a layer, L1, or a cumulative stack, L0+L1;
+        None: the whole stack's); InputError naming the run for a selection it does not have."""
+        names = [chosen for chosen, _ in selections(len(self.levels))]
+        name = name or names[-1]
+        if name not in names:
+            raise InputError(self.path, f"no layer selection {name!r}; choose from {', '.join(names)}")
+        return self.path / "curves" / name
 
     def write(self) -> None:
         """Write layers.json (the layers' config.json are written as each starts)."""

@@ -15,12 +15,18 @@ training of the folder's own configuration to its last epoch. What each caller m
 folder is its policy: START (`edgedog train`: a new or empty folder), CONTINUE (`--resume`: the
 run there, with its own settings) or REUSE (the demo, the benchmarks: a new folder, or this very
 run, resumed or reused).
+
+A folder's record is read here for every caller (`record_kind`, `holds_run`, `read_record`,
+`open_record`, `curves_of`): a `RunFolder` or a `LayeredRun`, which answer alike, so that no
+caller tells a layered run from a single one. A folder's lock is taken in one place,
+`lock_folder`.
 """
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -36,9 +42,11 @@ from edgedog.train.run_folder import (
     LOG,
     RUN_CONFIG,
     RunFolder,
+    RunLock,
     check_new_run_folder,
     differ,
     is_run_folder,
+    own_curves,
     read_run,
 )
 
@@ -48,7 +56,10 @@ if TYPE_CHECKING:  # torch loads only when a run trains
 RunRecord = RunFolder | LayeredRun
 """What a run folder records of its run: config.json's run of one layer, or layers.json's
 layered run. Both answer the same questions (path, scene, preset, config, fingerprints,
-`layers()`, `curves_folder`, `report_file`, `extract()`, `write()`)."""
+`layers()`, `curves_folder`, `selection_folder()`, `report_file`, `extraction_scene()`,
+`extract()`, `write()`): a caller holding either needs no branch."""
+LAYERED_RUN, SINGLE_RUN = "layered run", "run"
+"""What `record_kind` says a folder records."""
 
 NEW, RESUME, FINISHED, REFUSED = "new", "resume", "finished", "refused"
 START, CONTINUE, REUSE = "start", "continue", "reuse"
@@ -186,9 +197,17 @@ def _checkpoint_step(path: Path) -> int:
     return step
 
 
+def record_kind(path: Path) -> str:
+    """What the folder `path` records: LAYERED_RUN (a layered run's layers.json), SINGLE_RUN (a
+    config.json of ours) or '' (no run)."""
+    if is_layered(path):
+        return LAYERED_RUN
+    return SINGLE_RUN if is_run_folder(path) else ""
+
+
 def holds_run(path: Path) -> bool:
     """Whether `path` records a run: a layered run's layers.json, or a config.json of ours."""
-    return is_layered(path) or is_run_folder(path)
+    return record_kind(path) != ""
 
 
 def read_record(path: Path) -> RunRecord:
@@ -201,6 +220,47 @@ def read_record(path: Path) -> RunRecord:
     if not (path / RUN_CONFIG).is_file():
         raise InputError(path, "is not an edgedog run folder (no config.json of ours); nothing to resume")
     return read_run(path)
+
+
+def lock_folder(path: Path) -> RunLock:
+    """Lock the folder `path` (made if missing) for this process's writes until released: the one
+    place edgedog takes a folder's lock (`RunLock`). A run's folder is locked by
+    `edgedog.train.run.open_run` (training) and `open_record` (extracting); a file a command
+    writes into a run folder, and a folder of runs (a batch's, a benchmark's), by
+    `edgedog.outputs`.
+
+    Raises:
+        InputError: another process holds the lock, or the folder cannot be locked.
+    """
+    return RunLock.acquire(path)
+
+
+@contextlib.contextmanager
+def open_record(path: Path) -> Iterator[RunRecord]:
+    """The run the folder `path` records (`read_record`), read under the folder's lock, held
+    throughout: for a command that reads a trained run and writes into it (`edgedog extract`).
+
+    Raises:
+        InputError: the folder is missing or records no run (no lock is taken then: nothing is
+            written into a folder not ours), or another process holds its lock.
+    """
+    if not path.is_dir():
+        raise InputError(path, "run folder not found")
+    if not holds_run(path):
+        raise InputError(path, "is not an edgedog run folder (no config.json of ours)")
+    with lock_folder(path):
+        yield read_record(path)
+
+
+def curves_of(path: Path, selection: str | None = None) -> tuple[Path, Path]:
+    """The folder holding the curves of `selection` of the run in `path` (`selection_folder`;
+    None: the whole model's) and the run folder whose log.json names their scene (the bottom
+    layer's); a folder that records no run holds curves of its own (`own_curves`: `path`, twice).
+    Reads, locks nothing."""
+    if not holds_run(path):
+        return own_curves(path, selection), path
+    run = read_record(path)
+    return run.selection_folder(selection), run.layers()[0].path
 
 
 def _check_same_record(run: RunRecord) -> None:

@@ -30,6 +30,7 @@ from edgedog.train.lifecycle import (
     RunResult,
     is_finished,
     load_run_scene,
+    lock_folder,
     replan,
 )
 from edgedog.train.run_folder import LOCK_FILE, LOG, RUN_CONFIG, RunFolder, RunLock, write_run
@@ -180,7 +181,7 @@ def open_run(plan: RunPlan, progress: bool = True) -> Run:
     """
     run = plan.check().run
     made = not run.path.exists()
-    lock = RunLock.acquire(run.path)
+    lock = lock_folder(run.path)
     try:
         current = replan(plan).check()
         scene = plan.scene if plan.scene is not None else load_run_scene(run.scene, run.config)

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from edgedog.curves.config import ExtractConfig
 from edgedog.errors import ConfigError, InputError, OutputError
 from edgedog.files import atomic_write_json, create_folder, read_json, remove_stale_temporaries
 from edgedog.train.config import DEFAULT_PRESET, PRESETS_RENAMED, TrainConfig, from_dict, to_dict
@@ -65,12 +66,24 @@ class RunFolder:
 
         return self.path / REPORT
 
-    def extract(self, scene: Scene) -> dict:
+    def extraction_scene(self, config: ExtractConfig) -> Scene:
+        """The scene as the run trained on it (`edgedog.curves.extract.run_scene`: from log.json),
+        with the maps it was fitted to when the projection filter of `config` needs them."""
+        from edgedog.curves.extract import run_scene
+
+        return run_scene(self.path, maps=config.filter_projection)[0]
+
+    def extract(self, scene: Scene, config: ExtractConfig = ExtractConfig()) -> dict:
         """Extract the curves of the trained run into its folder with the maps it was fitted to;
         returns the report (also written to `report_file`)."""
         from edgedog.curves.report import extract_with_report
 
-        return extract_with_report(self.path, scene, read_json(self.path / LOG)["detector"])[1]
+        return extract_with_report(self.path, scene, read_json(self.path / LOG)["detector"], config)[1]
+
+    def selection_folder(self, name: str | None = None) -> Path:
+        """Where the curves of the whole model are (`own_curves`): a run of one layer has no
+        selections of layers."""
+        return own_curves(self.path, name)
 
     def layers(self) -> tuple[RunFolder, ...]:
         """The run folder of each layer, bottom first: a run folder is a stack of one layer
@@ -80,6 +93,14 @@ class RunFolder:
     def write(self) -> None:
         """Write config.json (`write_run`)."""
         write_run(self)
+
+
+def own_curves(path: Path, selection: str | None) -> Path:
+    """The curves folder of a run of one layer, or of a folder of curves that records no run:
+    `path` itself; InputError naming it when a layered run's `selection` is asked for."""
+    if selection:
+        raise InputError(path, "--layers needs a layered run (edgedog train --layers)")
+    return path
 
 
 def _run_config_data(path: Path) -> dict | None:
