@@ -8,7 +8,8 @@ immutable snapshots that the window reads.
 - state.py: what the panels edit; script.py: a scripted driver feeding the same state.
 - session.py, worker.py: the scene, its run folders, and the training thread.
 - view3d.py, textures.py: GL drawing; inspection.py, extraction.py, jobs.py: work done off the
-  UI thread; colors.py, layers.py: colour maps and the layer list.
+  UI thread; colors.py, layers.py, rates.py: colour maps, the layer list and the readouts'
+  moving rates.
 - layout.py and *_panel.py: the panels.
 """
 

@@ -50,7 +50,12 @@ def _training(studio) -> None:
     worker, state = studio.worker, studio.state
     phase = None if worker is None else worker.phase
     if worker is not None:  # above the buttons: their tooltips open below the mouse
-        imgui.text(f"{phase}  {worker.steps_per_second:.1f} steps/s  {worker.steps} steps")
+        if worker.alive:  # the rate now, over the last few seconds
+            imgui.text(f"{phase}  {studio.step_rate.rate:.1f} steps/s  {worker.steps} steps")
+            imgui.set_item_tooltip(f"steps per second over the last {studio.step_rate.seconds:.0f} s; "
+                                   f"{worker.steps_per_second:.1f} on average")
+        else:
+            imgui.text(f"{phase}  {worker.steps_per_second:.1f} steps/s on average  {worker.steps} steps")
     if phase in (None, FINISHED, STOPPED, FAILED):
         if widgets.button(_start_label(studio), "train: the opened run folder continues where it was saved; "
                           "otherwise a new run folder under the runs folder (space)"):
@@ -204,7 +209,8 @@ def draw(studio, area: layout.Area) -> None:
 def draw_status(studio, area: layout.Area) -> None:
     """One line: where help is, and the last thing done or the trainer's error."""
     if layout.begin("##status", area, imgui.WindowFlags_.no_title_bar | imgui.WindowFlags_.no_scrollbar):
-        imgui.text_disabled("F1: help |")
+        imgui.text_disabled(f"F1: help | {studio.frame_rate.rate:.0f} fps |")
+        imgui.set_item_tooltip("frames the window draws per second, over the last few seconds")
         imgui.same_line()
         worker = studio.worker
         if worker is not None and worker.error:

@@ -88,19 +88,36 @@ def scale_for_dpi(window) -> None:
 
 
 class InputWatch:
-    """When the user last touched the window. Installed before imgui's backend, which chains
-    these callbacks after its own."""
+    """When the user last touched the window, and when what they typed was drawn. Installed
+    before imgui's backend, which chains these callbacks after its own.
+
+    Attributes:
+        typed: characters typed so far; drawn: (time.monotonic(), typed) after each frame that
+            showed newly typed characters (the studio benchmark's input latency).
+    """
 
     def __init__(self, window):
         self.last = time.perf_counter()
+        self.typed = 0
+        self.drawn: list[tuple[float, int]] = []
         for install in (glfw.set_cursor_pos_callback, glfw.set_mouse_button_callback,
-                        glfw.set_scroll_callback, glfw.set_key_callback, glfw.set_char_callback,
+                        glfw.set_scroll_callback, glfw.set_key_callback,
                         glfw.set_window_size_callback, glfw.set_window_focus_callback):
             install(window, self.touch)
+        glfw.set_char_callback(window, self._char)
 
     def touch(self, *_event) -> None:
         """Count as input now (also for input that does not come through GLFW: a script's)."""
         self.last = time.perf_counter()
+
+    def _char(self, *_event) -> None:
+        self.typed += 1
+        self.touch()
+
+    def frame_drawn(self) -> None:
+        """Note a frame shown (after the buffer swap) when characters were typed since the last."""
+        if self.typed != (self.drawn[-1][1] if self.drawn else 0):
+            self.drawn.append((time.monotonic(), self.typed))
 
     @property
     def active(self) -> bool:

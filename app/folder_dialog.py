@@ -58,7 +58,7 @@ class FolderDialog:
     def __init__(self, opened: Path):
         """Shows the folder holding `opened` (the scene or run open now), with it selected."""
         opened = Path(opened).expanduser().resolve()
-        self.open, self._appearing = True, True
+        self.open, self._appearing, self._focus_path = True, True, True
         self.go(opened.parent)
         self.selected = opened.name if any(name == opened.name for name, _ in self.entries) else None
 
@@ -86,8 +86,13 @@ class FolderDialog:
         return chosen
 
     def _contents(self) -> Path | None:
+        if self._focus_path:  # a path can be typed at once
+            imgui.set_keyboard_focus_here()
+            self._focus_path = False
         entered, self.typed = imgui.input_text("folder", self.typed, imgui.InputTextFlags_.enter_returns_true)
         imgui.set_item_tooltip("type a path and press Enter to go there")
+        if imgui.is_item_deactivated() and imgui.is_key_pressed(imgui.Key.escape, False):
+            self.open = False  # Esc closes the browser, typing or not (the shortcuts skip text input)
         if entered:
             typed = Path(self.typed).expanduser()
             if typed.is_dir():

@@ -20,6 +20,7 @@ from edgedog.app.inspection import NAMES as INSPECTOR_NAMES
 from edgedog.app.inspection import Inspector, inspect_view
 from edgedog.app.jobs import BackgroundJob, Done
 from edgedog.app.layers import finest, layer_members, selection, visible_subset
+from edgedog.app.rates import MovingRate
 from edgedog.app.saved_run import read_extraction
 from edgedog.app.session import Session
 from edgedog.app.state import EXPORT_FORMATS, LiveSettings, Request, UIState
@@ -74,6 +75,11 @@ class Studio:
         self.exports: list[Path] = []
         self.stop_seconds: float | None = None
         self.frames = 0
+        self.frame_rate = MovingRate()
+        """Frames drawn per second, now."""
+        self.typed_drawn: list[tuple[float, int]] = []
+        """(time.monotonic(), characters typed so far) when a frame showed newly typed ones: the
+        window's (display.InputWatch.drawn), for the studio benchmark's input latency."""
         self.dialog: FolderDialog | None = None
         self.plots_tabbed = False
         """Whether the plots panel showed its plots in tabs (too short to stack them)."""
@@ -102,6 +108,8 @@ class Studio:
         """The layers the inspectors show, e.g. 'L0+L1'."""
         self.extraction: Extraction | None = None
         self.fscores: list[tuple[float, dict[int, float]]] = []
+        self.step_rate = MovingRate()
+        """The current run's training steps per second, now."""
         self._applied_live: LiveSettings | None = None  # pushed to the next worker at once
         self._inspected = self._extracted = None
         self._last_inspect = self._last_extract = 0.0
@@ -163,6 +171,10 @@ class Studio:
     def frame(self) -> list[Request]:
         """Update and draw everything; returns the requests only the window can act on."""
         self.frames += 1
+        now = time.monotonic()
+        self.frame_rate.add(now, self.frames)
+        if self.worker is not None:
+            self.step_rate.add(now, self.worker.steps)
         shortcuts.handle_keys(self)
         window_requests = [r for r in self.state.take_requests() if not self._handle(r)]
         self.session.reap()
@@ -416,6 +428,7 @@ class Studio:
         facts = {"phase": None if worker is None else worker.phase, "runs": self.session.runs,
                  "steps": 0 if worker is None else worker.steps,
                  "steps_per_second": 0.0 if worker is None else worker.steps_per_second,
+                 "steps_per_second_now": self.step_rate.rate, "fps_now": self.frame_rate.rate,
                  "error": None if worker is None else worker.error,
                  "version": None if self.latest is None else self.latest.version,
                  "splats_uploaded": self.view.splats.count, "splats_drawn": self.view.drawn,
@@ -436,6 +449,8 @@ class Studio:
                  "help": self.state.show_help, "cut_widgets": sorted(widgets.CUT),
                  "plots_tabbed": self.plots_tabbed,
                  "dialog": None if self.dialog is None else str(self.dialog.path),
+                 "dialog_text": None if self.dialog is None else self.dialog.typed,
+                 "typed_drawn": self.typed_drawn,
                  "confirm": None if self.confirm is None else self.confirm.question,
                  "title": self.title}
         controls = None if worker is None else worker.trainer_controls()

@@ -68,6 +68,7 @@ def _loop(window, ctx: moderngl.Context, studio: Studio, driver: ScriptDriver | 
             title = studio.title
             glfw.set_window_title(window, title)
         glfw.swap_buffers(window)
+        watch.frame_drawn()
         cap = TRAINING_FPS if studio.training else ACTIVE_FPS
         time.sleep(max(0.0, 1 / cap - (time.perf_counter() - started)))
         fps = cap if watch.active else IDLE_FPS
@@ -97,6 +98,7 @@ def run_studio(session: Session, runs_root: Path | None = None, script: Path | N
         imgui.backends.glfw_init_for_opengl(ctypes.cast(window, ctypes.c_void_p).value, True)
         imgui.backends.opengl3_init(f"#version {GL_VERSION}")
         studio = Studio(ctx, session, runs_root)
+        studio.typed_drawn = watch.drawn
         glfw.set_drop_callback(window, lambda _window, paths: studio.state.request("open", path=paths[0]))
         glfw.set_window_close_callback(window, lambda _window: _ask_to_quit(window, studio))
         try:

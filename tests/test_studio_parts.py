@@ -88,3 +88,16 @@ def test_the_benchmark_help_ends_with_a_sentence(capsys):
     help_text = capsys.readouterr().out
     description = help_text.split("\n\n")[1]
     assert description.rstrip().endswith(".")
+
+
+def test_a_moving_rate_follows_the_last_seconds_not_the_average():
+    from edgedog.app.rates import MovingRate
+
+    rate = MovingRate(seconds=2.0)
+    assert rate.rate == 0.0
+    for second in range(11):  # 10 a second for 10 s, then 2 a second
+        rate.add(float(second), 10.0 * second)
+    assert rate.rate == pytest.approx(10.0)
+    for second in range(11, 15):
+        rate.add(float(second), 100.0 + 2.0 * (second - 10))
+    assert rate.rate == pytest.approx(2.0)  # the run's average would still say 7.6

@@ -314,6 +314,18 @@ def test_real_keys_close_the_topmost_window_and_quitting_asks_first(box, window_
     assert probe["phase"] == "stopped" and "answered" in outcome["marks"]
 
 
+def test_a_path_typed_right_after_ctrl_o_goes_into_the_browser(box, window_manager, tmp_path):
+    # The browser's path field has the keys as it opens: a typed path replaces the one shown,
+    # Enter goes there, and Esc still closes the browser.
+    actions = [{"expect": {"dialog": str(box.parent)}, "timeout": 60},
+               {"expect": {"dialog": "/tmp"}, "timeout": 30},
+               {"expect": {"dialog": None}, "timeout": 30},
+               {"request": "close"}]
+    keys = [4.0, "ctrl+o", KEY_PAUSE, "slash", "t", "m", "p", "Return", KEY_PAUSE, "Escape"]
+    probe = assert_ok(*run_with_keys(actions, keys, [box], window_manager, tmp_path))
+    assert probe["typed_drawn"][-1][1] == 4  # every typed character was drawn
+
+
 def test_restart_and_open_while_training_ask_and_a_stray_q_keeps_the_run(box, xvfb_display, tmp_path):
     restart = "Stop this run and train a new run folder? It keeps its last checkpoint."
     actions = [
