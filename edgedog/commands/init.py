@@ -18,19 +18,22 @@ def add_parser(subparsers) -> None:
     from edgedog.init import DEFAULTS, INIT_METHODS
 
     parser = subparsers.add_parser(
-        "init", help="initial points: SfM triangulation with the known poses, or a uniform cube",
+        "init",
+        help="initial points: SfM triangulation with the known poses, an edge vote, or a uniform cube",
         description="Compute the initial primitives' positions and scales and say which method was "
                     "used and why: the scene's SfM points, SIFT points triangulated with the known "
-                    "cameras and kept on pseudo edges, or EdgeGaussians' uniform cube.")
+                    "cameras and kept on pseudo edges, the cells where the views' edge maps agree "
+                    "(edge-vote), or EdgeGaussians' uniform cube.")
     parser.add_argument("scene", help="scene folder")
     parser.add_argument("--method", choices=INIT_METHODS, default=DEFAULTS.method,
                         help=f"how the points are found (default {DEFAULTS.method}, as `edgedog train`)")
     parser.add_argument("--detector", default=None,
-                        help="keep only points that project onto this detector's edge maps in 2+ views")
+                        help="keep only points that project onto this detector's edge maps in 2+ views "
+                             "(edge-vote: the maps that vote; default the scene's first)")
     parser.add_argument("--min-points", type=int, default=500, help="fewest points 'auto' accepts")
     parser.add_argument("--uniform-count", type=int, default=DEFAULTS.count,
-                        help=f"points of the uniform cube (default {DEFAULTS.count}, as `edgedog train`; "
-                             "EdgeGaussians uses 2500)")
+                        help=f"points of the uniform cube, the most edge-vote keeps (default "
+                             f"{DEFAULTS.count}, as `edgedog train`; EdgeGaussians uses 2500)")
     parser.add_argument("--uniform-side", type=_side, default=DEFAULTS.side,
                         help=f"edge of the uniform cube, or 'none' for the scene bounds' largest extent "
                              f"(default {DEFAULTS.side}, as `edgedog train` and EdgeGaussians for ABC)")

@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from edgedog.errors import InputError
+from edgedog.init.edge_vote import VoteSettings, edge_vote_points
 from edgedog.init.points import InitialPoints, nearest_neighbour_scales
 from edgedog.init.settings import InitMethod, InitSettings
 from edgedog.init.triangulate import checked_views, keep_on_edges, keypoints_per_view, triangulate_known_poses
@@ -26,21 +27,37 @@ DEFAULTS = InitSettings()
 """The defaults of `edgedog init` and of training's `init` section."""
 
 
-def uniform_for_scene(scene: Scene, count: int = DEFAULTS.count, side: float | None = DEFAULTS.side,
-                      seed: int = 0) -> InitialPoints:
-    """EdgeGaussians' uniform cube, centred on the point an object-centric capture looks at, else
-    on the scene's bounds (metadata boxes such as EMAP's [-1, 1]^3 are often loose and off-centre).
-
-    Args:
-        side: cube edge; None: the bounds' largest extent (the cube then covers the bounds).
-    """
+def scene_cube(scene: Scene, side: float | None = DEFAULTS.side) -> tuple[np.ndarray, float]:
+    """(3,) centre and edge of the cube the scene's object lies in: centred on the point an
+    object-centric capture looks at, else on the scene's bounds (metadata boxes such as EMAP's
+    [-1, 1]^3 are often loose and off-centre); `side` None: the bounds' largest extent."""
     lo, hi = np.asarray(scene.bounds, dtype=np.float64)
     side = float(np.max(hi - lo)) if side is None else float(side)
     center = look_at_point(scene.cameras)
-    center = (lo + hi) / 2 if center is None else center
+    return ((lo + hi) / 2 if center is None else center), side
+
+
+def uniform_for_scene(scene: Scene, count: int = DEFAULTS.count, side: float | None = DEFAULTS.side,
+                      seed: int = 0) -> InitialPoints:
+    """EdgeGaussians' uniform cube over `scene_cube`."""
+    center, side = scene_cube(scene, side)
     # EdgeGaussians' scales (0.004 to 0.005) are for a 1.1-wide cube: keep their ratio to it.
     scale_range = (0.004 * side / 1.1, 0.005 * side / 1.1)
     return uniform_init(center, side=side, count=count, scale_range=scale_range, seed=seed)
+
+
+def edge_vote_for_scene(scene: Scene, settings: InitSettings, detector: str | None,
+                        seed: int = 0) -> InitialPoints:
+    """The cells of `scene_cube` where the views' `detector` maps agree (`edge_vote_points`),
+    carved by the views' masks where the scene has them."""
+    center, side = scene_cube(scene, settings.side)
+    maps = [scene.load_edge_map(i, detector) for i in range(len(scene))]
+    masks = [scene.load_mask(i) for i in range(len(scene))]
+    vote = VoteSettings(cone=settings.vote_cone, surprise=settings.vote_surprise,
+                        edge_threshold=settings.edge_threshold)
+    # Scales as the uniform cube's at its densest, down to a tenth of that for close neighbours.
+    scale_range = (0.0004 * side / 1.1, 0.005 * side / 1.1)
+    return edge_vote_points(scene.cameras, maps, masks, center, side, settings.count, scale_range, vote, seed)
 
 
 def sfm_points_on_edges(scene: Scene, detector: str | None = None, min_edge_views: int = 2,
@@ -122,6 +139,12 @@ def initialize(scene: Scene, settings: InitSettings = DEFAULTS, workdir: Path | 
 
     if method == "uniform":
         return uniform("requested", [])
+    if method == "edge-vote":
+        result = edge_vote_for_scene(scene, settings, detector, seed)
+        if len(result) == 0:
+            raise InputError(scene.root, "the views' edge maps agree on no point (empty maps, or cameras "
+                                         "that do not see one object); use the uniform initialisation")
+        return finish(result, "requested", [])
     if method == "sfm-points":
         result = sfm_points_on_edges(scene, detector, edge_threshold=threshold, views=views)
         return finish(result, "requested", [])
@@ -174,6 +197,7 @@ def initialize(scene: Scene, settings: InitSettings = DEFAULTS, workdir: Path | 
 
 __all__ = [
     "DEFAULTS",
+    "edge_vote_for_scene",
     "INIT_METHODS",
     "KEYPOINT_MARGIN",
     "PROBE_VIEWS",

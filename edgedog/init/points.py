@@ -7,7 +7,7 @@ from typing import Any
 
 import numpy as np
 
-METHODS = ("triangulated", "uniform", "sfm-points")
+METHODS = ("triangulated", "uniform", "sfm-points", "edge-vote")
 
 
 @dataclass
@@ -17,7 +17,7 @@ class InitialPoints:
     Attributes:
         positions: (N, 3) float64 world coordinates.
         scales: (N,) float64 initial isotropic scale (standard deviation) per point, world units.
-        method: "triangulated" | "uniform" | "sfm-points".
+        method: "triangulated" | "uniform" | "sfm-points" | "edge-vote".
         report: JSON-ready facts about how the points were made: counts, thresholds, and, when
             an automatic choice fell back to another method, why.
     """

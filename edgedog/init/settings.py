@@ -27,9 +27,10 @@ Count = Annotated[int, Range(1, MAX_PRIMITIVES)]
 Logit = Annotated[float, Range(-MAX_LOGIT, MAX_LOGIT)]
 """A raw value before its activation."""
 
-InitMethod = Literal["auto", "triangulate", "sfm-points", "uniform"]
+InitMethod = Literal["auto", "triangulate", "sfm-points", "uniform", "edge-vote"]
 """'uniform': EdgeGaussians' cube; 'triangulate': SIFT matches triangulated with the known
-cameras; 'sfm-points': a COLMAP scene's own points; 'auto': the first of sfm-points, triangulate,
+cameras; 'sfm-points': a COLMAP scene's own points; 'edge-vote': the cells of the cube where the
+views' edge maps agree (`edgedog.init.edge_vote`); 'auto': the first of sfm-points, triangulate,
 uniform that gives enough points (see `edgedog.init.initialize`)."""
 
 
@@ -41,7 +42,8 @@ class InitSettings(Settings):
     """How the initial points are found (see `InitMethod`)."""
     count: Count = 10000
     """Points of the uniform cube (EdgeGaussians start from 2500; with w = exp(-Up) the rims that
-    are also depth jumps need the denser start: docs/BENCHMARKS.md)."""
+    are also depth jumps need the denser start: docs/BENCHMARKS.md); the most that 'edge-vote'
+    keeps."""
     side: Annotated[float | None, Range(0, open_low=True)] = 1.1
     """Edge of the uniform cube (EdgeGaussians: 1.1 around the object for ABC); None: the scene
     bounds' largest extent."""
@@ -53,6 +55,12 @@ class InitSettings(Settings):
     the views facing its way (optical axes within 90 degrees), instead of every pair: matching
     grows with views x neighbours, not views squared. 0, or at least the other views: every
     pair, facing away or not (COLMAP's exhaustive matching)."""
+    vote_surprise: Annotated[float, Range(0, 50)] = 1.5
+    """'edge-vote' keeps a cell when its views' votes have a p-value under 10^-this by chance,
+    over all views or within a cone of `vote_cone` neighbouring views."""
+    vote_cone: Annotated[int, Range(2, MAX_MATCH_NEIGHBOURS)] = 6
+    """Views in each cone of 'edge-vote': about the fewest views that see an edge it must find
+    (the floor of a deep pocket is seen by 4 to 6 of 50 views around it)."""
     opacity: Annotated[float, Range(0, 1, open_low=True, open_high=True)] = 0.08
     """Initial opacity of every primitive."""
     k: tuple[Logit, Logit] = (0.0, 0.0)
