@@ -12,7 +12,7 @@ from edgedog.renderer.config import RasterConfig
 from edgedog.train.config import TrainConfig, with_settings
 from edgedog.train.model import EdgeModel
 from edgedog.train.optim import Optimizers
-from edgedog.train.spacing import redundant
+from edgedog.train.spacing import edge_directions, redundant
 from edgedog.train.strategy import DensityStrategy
 from edgedog.train.trainer import Trainer
 from tests.helpers.tiny_runs import every_fifth_view, tiny_config
@@ -75,26 +75,21 @@ def test_duplication_stays_within_the_budget(max_primitives, copied):
 
 def along_edges(corners: list[tuple[tuple[float, float, float], tuple[float, float, float]]], count: int,
                 seed: int) -> EdgeModel:
-    """`count` small primitives spread at random along the segments (start, end) in proportion to
-    their lengths (the same count whatever the edge length, as a uniform start ends today): major
-    axis along the segment (2 degrees of noise), centres 1 mm off it at most, random opacity."""
+    """`count` small round primitives spread at random along the segments (start, end) in
+    proportion to their lengths (the same count whatever the edge length, as a uniform start ends
+    today): centres 1 mm off the segment at most, scales 1.2 : 1 : 0.9 along random axes (as
+    trained primitives, whose major axis is no edge direction), random opacity."""
     g = torch.Generator().manual_seed(seed)
     ends = torch.tensor(corners, dtype=torch.float64)
     lengths = (ends[:, 1] - ends[:, 0]).norm(dim=1)
     segment = torch.multinomial(lengths, count, replacement=True, generator=g)
     t = torch.rand(count, 1, generator=g, dtype=torch.float64)
-    direction = (ends[segment, 1] - ends[segment, 0]) / lengths[segment, None]
     means = ends[segment, 0] + t * (ends[segment, 1] - ends[segment, 0])
     means += (torch.rand(count, 3, generator=g, dtype=torch.float64) - 0.5) * 0.002
-    axis = direction + torch.randn(count, 3, generator=g, dtype=torch.float64) * 0.035
-    axis = axis / axis.norm(dim=1, keepdim=True)
-    # A rotation whose first column is `axis` (quaternion of the shortest turn from x to it).
-    x = torch.tensor([1.0, 0.0, 0.0], dtype=torch.float64).expand(count, 3)
-    quats = torch.cat([1 + (x * axis).sum(1, keepdim=True), torch.cross(x, axis, dim=1)], dim=1)
-    quats = quats / quats.norm(dim=1, keepdim=True)
-    log_scales = torch.log(torch.tensor([0.004, 0.001, 0.001])).repeat(count, 1)
-    return EdgeModel(means.float(), log_scales.float(), quats.float(), torch.randn(count, generator=g),
-                     torch.zeros(count, 2)).requires_grad_()
+    quats = torch.randn(count, 4, generator=g)
+    log_scales = torch.log(torch.tensor([0.0048, 0.004, 0.0036])).repeat(count, 1)
+    return EdgeModel(means.float(), log_scales, quats / quats.norm(dim=1, keepdim=True),
+                     torch.randn(count, generator=g), torch.zeros(count, 2)).requires_grad_()
 
 
 def box_edges(side: float) -> list:
@@ -137,23 +132,39 @@ def test_spacing_makes_the_count_follow_the_edge_length():
         counts[name] = len(model) / length
         assert 0.5 / 0.02 < counts[name] < 1 / 0.02, (name, len(model))
     assert 0.7 < counts["cube"] / counts["square"] < 1.3, counts
-    # No two kept primitives along one edge are closer than the spacing.
+    # No two kept primitives along one edge (away from its ends) are closer than the spacing.
     model, _, _ = spaced(along_edges(square_edges(0.5), 4000, seed=2), spacing=0.02)
     means = model.means.detach()
-    distances = torch.cdist(means, means) + torch.eye(len(model)) * 10
-    parallel = (model.major_axes().detach() @ model.major_axes().detach().T).abs() > 0.9
-    assert distances[parallel].min() >= 0.02
+    inner = means[(means[:, 1] < 0.002) & (means[:, 0] > 0.02) & (means[:, 0] < 0.48)]
+    assert len(inner) > 10 and torch.pdist(inner).min() >= 0.02
 
 
 def test_spacing_keeps_the_most_opaque_and_both_edges_that_meet():
-    # Three primitives at one place: two along x (opacity logits 1 and 2), one along y (logit 0).
-    quat_y = [0.7071068, 0.0, 0.0, 0.7071068]  # a quarter turn about z: x goes to y
-    model = EdgeModel(torch.zeros(3, 3), torch.log(torch.tensor([[0.004, 0.001, 0.001]] * 3)),
-                      torch.tensor([[1.0, 0, 0, 0], [1.0, 0, 0, 0], quat_y]), torch.tensor([1.0, 2.0, 0.0]),
-                      torch.zeros(3, 2)).requires_grad_()
-    model, events, _ = spaced(model, spacing=0.01)
-    assert events[0]["removed"] == 1
-    assert model.opacity_logits.detach().tolist() == [2.0, 0.0]
+    # Two edges crossing at the origin, along x and y, 400 primitives on each.
+    before = along_edges([((-0.2, 0, 0), (0.2, 0, 0)), ((0, -0.2, 0), (0, 0.2, 0))], 800, seed=4)
+    means, logits = before.means.detach().clone(), before.opacity_logits.detach().clone()
+    model, _, _ = spaced(before, spacing=0.02)
+    kept = ((means[:, None] - model.means.detach()[None]).abs().sum(dim=2) == 0).any(dim=1)
+    on_x = means[:, 1].abs() < 0.002
+    for line in (on_x, ~on_x):  # each edge keeps one primitive per 2 to 4 cm, the crossing too
+        assert 0.4 / 0.04 <= int((kept & line).sum()) <= 0.4 / 0.02 + 1
+    # Each primitive removed has a kept one on its edge within the spacing, at least as opaque
+    # (away from the crossing, where the edge's direction is the two edges').
+    for row in torch.nonzero(~kept & (means.norm(dim=1) > 0.03)).squeeze(1).tolist():
+        same_edge = kept & (on_x == on_x[row]) & ((means - means[row]).norm(dim=1) < 0.02)
+        assert bool((logits[same_edge] >= logits[row]).any())
+
+
+def test_redundant_compares_the_directions_of_the_edge():
+    # Three primitives at one place: two where the edge runs along x (ranks 1 and 2), one where
+    # it runs along y (rank 0): the less ranked along x goes; at 60 degrees apart, so does y's.
+    means, axes = np.zeros((3, 3)), np.array([[1.0, 0, 0], [-1.0, 0, 0], [0.5, 0.866, 0]])
+    rank = np.array([1.0, 2.0, 0.0])
+    assert redundant(means, axes, rank, 0.01, 30.0).tolist() == [True, False, False]
+    assert redundant(means, axes, rank, 0.01, 61.0).tolist() == [True, False, True]
+    # Apart by the spacing or more, all stay.
+    assert not redundant(np.array([[0.0, 0, 0], [0.01, 0, 0], [0.02, 0, 0]]), axes[[0, 0, 0]], rank, 0.01,
+                         30.0).any()
 
 
 def test_spacing_splits_a_primitive_longer_than_the_spacing():
@@ -199,8 +210,8 @@ def test_spacing_in_a_run_keeps_the_best_ranked(builtin_scene_dir, tmp_path, kee
     model = trainer.model
     rank = (trainer.strategy.fisher_scores(model, trainer.views) if keep == "fisher"
             else model.opacity_logits.detach())
-    removed = redundant(model.means.detach().double().numpy(), model.major_axes().detach().double().numpy(),
-                        rank.double().numpy(), 0.05, 30.0, 16)
+    means = model.means.detach().double().numpy()
+    removed = redundant(means, edge_directions(means, 8, 0.05), rank.double().numpy(), 0.05, 30.0)
     expected = model.means.detach()[torch.from_numpy(~removed)]
     events = trainer.strategy.at_epoch_end(1, model, trainer.optimizers, trainer.state, trainer.views,
                                            trainer.generator, keep_ratio=1.0)

@@ -297,10 +297,11 @@ class StrategySettings(Settings):
     """Duplication never grows the model beyond this."""
     spacing_epochs: tuple[Epoch, ...] = ()
     """Epochs after which the primitives are held at `spacing` along the edges
-    (edgedog.train.spacing): of primitives closer than `spacing` along similar directions the
-    one ranked higher by `spacing_keep` stays and the others are removed, and an elongated
-    primitive whose largest scale exceeds `spacing` is split along its major axis (`spacing_split`).
-    Empty: no spacing control."""
+    (edgedog.train.spacing): of primitives closer than `spacing` where the edge runs in similar
+    directions (the principal axes of their neighbours' centres) the one ranked higher by
+    `spacing_keep` stays and the others are removed, and an elongated primitive whose largest
+    scale exceeds `spacing` is split along its major axis (`spacing_split`). Empty: no spacing
+    control."""
     spacing: Annotated[float, Range(0, open_low=True)] = 0.01
     """Target distance between neighbouring primitives along an edge, in scene units (0.01: 1 cm
     of an ABC object, twice its 5 mm ground-truth spacing), or with `spacing_relative` as a share
@@ -309,11 +310,13 @@ class StrategySettings(Settings):
     """`spacing` is a share of the largest side of the box holding the central 98 % of the
     primitives' centres along each axis (the object's size, whatever its unit)."""
     spacing_angle: Annotated[float, Range(0, 90)] = 30.0
-    """Largest angle (degrees) between two primitives' major axes for them to cover the same
-    stretch of edge (more: two edges that meet, both kept)."""
-    spacing_neighbours: Annotated[int, Range(1, MAX_NEIGHBOURS)] = 16
-    """Nearest neighbours each primitive is compared with (a KD-tree query): the cost is
-    N log N times this, whatever the density."""
+    """Largest angle (degrees) between the edge's directions at two primitives (the principal
+    axes of their `spacing_neighbours` nearest centres) for them to cover the same stretch of
+    edge (more: two edges that meet, both kept)."""
+    spacing_neighbours: Annotated[int, Range(1, MAX_NEIGHBOURS)] = 8
+    """The edge's direction at a primitive is the principal axis of the centres averaged in its
+    cell of side `spacing` / 2 and in this many nearest such cells (about this many half
+    spacings of edge on either side)."""
     spacing_keep: Literal["opacity", "fisher"] = "opacity"
     """Which of a redundant group stays: the most opaque (largest over the views with a
     view-dependent opacity), or the largest Fisher score (one Fisher pass over the views)."""

@@ -16,7 +16,7 @@ from edgedog.train.config import MAX_COPIES, TrainConfig
 from edgedog.train.model import EdgeModel
 from edgedog.train.optim import Optimizers
 from edgedog.train.resolution import ViewSet
-from edgedog.train.spacing import redundant, spacing_length, split_offsets, split_pieces
+from edgedog.train.spacing import edge_directions, redundant, spacing_length, split_offsets, split_pieces
 from edgedog.train.view_opacity import camera_centres, largest_logits, relative_opacity, seen_from
 
 
@@ -175,8 +175,8 @@ class DensityStrategy:
             rank = self.fisher_scores(model, views)
         else:
             rank = self._largest_logits(model, views)
-        removed = redundant(means, model.major_axes().detach().double().cpu().numpy(),
-                            rank.double().cpu().numpy(), length, c.spacing_angle, c.spacing_neighbours)
+        removed = redundant(means, edge_directions(means, c.spacing_neighbours, length),
+                            rank.double().cpu().numpy(), length, c.spacing_angle)
         kept = torch.nonzero(torch.from_numpy(~removed)).squeeze(1).to(model.device)
         self._apply(model, optimizers, state, kept)
         split = 0
