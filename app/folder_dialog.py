@@ -14,8 +14,7 @@ from edgedog.app import widgets
 from imgui_bundle import imgui
 
 from edgedog.scenes import FORMATS
-from edgedog.train.layered import is_layered
-from edgedog.train.run_folder import is_run_folder
+from edgedog.train.lifecycle import record_kind
 
 TITLE = "Open a scene or run folder"
 MAX_ENTRIES = 2000
@@ -24,10 +23,9 @@ MAX_ENTRIES = 2000
 
 def folder_kind(path: Path) -> str:
     """'run', 'layered run', a scene format's name, or '' for any other folder."""
-    if is_layered(path):
-        return "layered run"
-    if is_run_folder(path):
-        return "run"
+    kind = record_kind(path)
+    if kind:
+        return kind
     for name, test, _ in FORMATS:
         try:
             if test(path):
