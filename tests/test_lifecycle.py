@@ -169,9 +169,9 @@ def test_finished_means_one_thing(small_box_scene, tmp_path):
     assert (out / "log.json").is_file() and not is_finished(out)
     assert plan_run(out, small_box_scene, "preview", run.config, REUSE).state == RESUME
     assert plan_run(out, small_box_scene, policy=CONTINUE).state == RESUME
-    from edgedog.app import session
+    from edgedog.app import saved_run
 
-    assert session.is_finished is run_object.is_finished is lifecycle.is_finished
+    assert saved_run.is_finished is run_object.is_finished is lifecycle.is_finished
 
 
 def _primitives(out: Path) -> bytes:
