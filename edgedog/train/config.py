@@ -95,7 +95,7 @@ Weighting = Literal["one", "exp_neg", "one_minus", "up", "exp"]
 EdgeProfile = Literal["auto", "raw", "thin", "profile"]
 MapCorrection = Literal["none", "calibrated", "shift", "learned"]
 SilhouetteCorrection = Literal["auto", "measured", "none"]
-StopMode = Literal["off", "run", "coarse"]
+StopMode = Literal["off", "run", "coarse", "both"]
 """What convergence ends (see `ScheduleSettings.stop`)."""
 
 
@@ -201,9 +201,10 @@ class ScheduleSettings(Settings):
     in a row with no primitives added, their centres' median shift below `stop_shift` and the
     epoch loss's relative change below `stop_loss_change`, then the Fisher scores' change below
     `stop_fisher_change`): `epochs` becomes a ceiling, and the density events scheduled after
-    the stop do not happen. 'coarse' ends only the coarse stage: the
-    run skips to `fine_from_epoch` (the epochs and density events between are left out) and
-    trains the fine stage to its end. 'off': every epoch is trained."""
+    the stop do not happen. 'coarse' ends only the coarse stage: the run skips to
+    `fine_from_epoch` (the epochs and density events between are left out) and trains the fine
+    stage to its end. 'both': the coarse stage ends when settled, then the run
+    when settled again in the fine stage. 'off': every epoch is trained."""
     stop_from_epoch: Epoch = 0
     """The first epoch at whose end the run may stop (or the coarse stage end)."""
     stop_patience: Annotated[int, Range(1, MAX_EPOCHS)] = 3
