@@ -153,3 +153,20 @@ def test_a_scene_whose_maps_agree_on_nothing_is_refused(builtin_scene_dir, tmp_p
     scene = load_scene(builtin_scene_dir)
     with pytest.raises(InputError, match="agree on no point"):
         initialize(scene, InitSettings(method="edge-vote", vote_surprise=50.0), detector=scene.detectors[0])
+
+
+def test_a_point_seen_from_few_views_looks_toward_them(hidden_maps):
+    import torch
+
+    from edgedog.train.model import EdgeModel
+
+    result = vote(hidden_maps, VoteSettings())
+    samples = np.linspace(*HIDDEN, 50)
+    near = np.min(np.linalg.norm(result.positions[:, None] - samples[None], axis=2), axis=1) < 2 * PIXEL
+    hidden_sight = result.sight[near]
+    assert near.sum() >= 10 and np.median(hidden_sight[:, 2]) > 0.5  # the six views above, and chance
+    assert np.median(np.linalg.norm(result.sight[~near], axis=1)) < np.median(hidden_sight[:, 2])
+    model = EdgeModel.from_points(result, 0.08, (0.0, 0.0), torch.Generator().manual_seed(0), sight_gain=4.0)
+    assert torch.allclose(model.opacity_dirs, torch.tensor(4.0 * result.sight, dtype=torch.float32))
+    plain = EdgeModel.from_points(result, 0.08, (0.0, 0.0), torch.Generator().manual_seed(0))
+    assert torch.all(plain.opacity_dirs == 0)

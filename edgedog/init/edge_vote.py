@@ -222,9 +222,39 @@ def level_scores(points: np.ndarray, views: list[VoteView],
     return inside, score
 
 
+def sight(points: np.ndarray, views: list[VoteView]) -> np.ndarray:
+    """(N, 3) mean of the unit directions from each point to the cameras of the views that vote
+    for it: long (up to 1) toward the few views that see an edge hidden from the rest, short for
+    one that views all around see."""
+    _, votes, _ = cast_votes(points, views)
+    total = np.zeros_like(points)
+    for v, view in enumerate(views):
+        offsets = view.camera.center - points
+        length = np.maximum(np.linalg.norm(offsets, axis=1, keepdims=True), 1e-12)
+        total += votes[:, v, None] * offsets / length
+    return total / np.maximum(votes.sum(axis=1, keepdims=True), 1)
+
+
+@dataclass(frozen=True)
+class Vote:
+    """The outcome of `vote_cells`.
+
+    Attributes:
+        centres: (M, 3) the kept cells' centres.
+        score: (M,) their surprise.
+        sight: (M, 3) `sight` of each.
+        report: the cells kept at each level, the finest cell's size ("cell") and the coarsest
+            grid's resolution.
+    """
+
+    centres: np.ndarray
+    score: np.ndarray
+    sight: np.ndarray
+    report: dict
+
+
 def vote_cells(cameras: list[Camera], edge_maps: list[np.ndarray], masks: list[np.ndarray | None],
-               center: np.ndarray, side: float,
-               settings: VoteSettings) -> tuple[np.ndarray, np.ndarray, dict]:
+               center: np.ndarray, side: float, settings: VoteSettings) -> Vote:
     """Cells of the finest grid that the views' edge maps agree on.
 
     Args:
@@ -232,9 +262,6 @@ def vote_cells(cameras: list[Camera], edge_maps: list[np.ndarray], masks: list[n
         edge_maps: V (H, W) float maps in [0, 1].
         masks: V (H, W) bool object masks or None.
         center: (3,) the cube's centre; side: its edge.
-    Returns:
-        centres: (M, 3) the kept cells' centres; score: (M,) their surprise; a report of the
-        cells kept at each level and the finest cell's size.
     """
     edges = [ridge_mask(np.asarray(m), floor=settings.edge_threshold) for m in edge_maps]
     cones = view_cones(cameras, center, settings.cone)
@@ -261,25 +288,28 @@ def vote_cells(cameras: list[Camera], edge_maps: list[np.ndarray], masks: list[n
         if not last:
             points = (points[:, None, :] + OFFSETS[None] * cell / 4).reshape(-1, 3)
             cell /= 2
-    return points, score, {"cells_kept": kept, "cell": cell, "coarsest": resolution}
+    report = {"cells_kept": kept, "cell": cell, "coarsest": resolution}
+    return Vote(points, score, sight(points, views), report)
 
 
 def edge_vote_points(cameras: list[Camera], edge_maps: list[np.ndarray], masks: list[np.ndarray | None],
                      center: np.ndarray, side: float, count: int, scale_range: tuple[float, float],
                      settings: VoteSettings = VoteSettings(), seed: int = 0) -> InitialPoints:
     """At most `count` initial points on the cells the views' edges agree on, one per cell,
-    jittered within it, with nearest-neighbour scales clipped to `scale_range`.
+    jittered within it, with nearest-neighbour scales clipped to `scale_range` and the cells'
+    `sight`.
 
     Where more cells agree than `count`, a random `count` of them are kept (uniformly along the
     edges: the most surprising would favour the edges that many views see over concave ones).
     """
-    centres, score, report = vote_cells(cameras, edge_maps, masks, center, side, settings)
+    vote = vote_cells(cameras, edge_maps, masks, center, side, settings)
     rng = np.random.default_rng(seed)
-    if len(centres) > count:
-        chosen = np.sort(rng.choice(len(centres), size=count, replace=False))
-        centres, score = centres[chosen], score[chosen]
-    positions = centres + (rng.random(centres.shape) - 0.5) * report["cell"]
+    chosen = np.arange(len(vote.centres))
+    if len(chosen) > count:
+        chosen = np.sort(rng.choice(len(chosen), size=count, replace=False))
+    cell = vote.report["cell"]
+    positions = vote.centres[chosen] + (rng.random((len(chosen), 3)) - 0.5) * cell
     scales = nearest_neighbour_scales(positions, lo=scale_range[0], hi=scale_range[1])
-    report.update({"points": int(len(positions)), "cells_agreeing": int(report["cells_kept"][-1]),
-                   "center": [float(c) for c in center], "side": float(side), "seed": int(seed)})
-    return InitialPoints(positions, scales, "edge-vote", report)
+    report = {**vote.report, "points": int(len(positions)), "cells_agreeing": int(len(vote.centres)),
+              "center": [float(c) for c in center], "side": float(side), "seed": int(seed)}
+    return InitialPoints(positions, scales, "edge-vote", report, sight=vote.sight[chosen])

@@ -20,18 +20,25 @@ class InitialPoints:
         method: "triangulated" | "uniform" | "sfm-points" | "edge-vote".
         report: JSON-ready facts about how the points were made: counts, thresholds, and, when
             an automatic choice fell back to another method, why.
+        sight: (N, 3) float64 or None: for each point, the mean unit direction toward the views
+            that saw it ('edge-vote'), from which a view-dependent opacity can start.
     """
 
     positions: np.ndarray
     scales: np.ndarray
     method: str
     report: dict[str, Any] = field(default_factory=dict)
+    sight: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         self.positions = np.asarray(self.positions, dtype=np.float64).reshape(-1, 3)
         self.scales = np.asarray(self.scales, dtype=np.float64).reshape(-1)
         if len(self.scales) != len(self.positions):
             raise ValueError(f"{len(self.scales)} scales for {len(self.positions)} points")
+        if self.sight is not None:
+            self.sight = np.asarray(self.sight, dtype=np.float64).reshape(-1, 3)
+            if len(self.sight) != len(self.positions) or not np.all(np.isfinite(self.sight)):
+                raise ValueError(f"sight must be {len(self.positions)} finite directions")
         if self.method not in METHODS:
             raise ValueError(f"method must be one of {', '.join(METHODS)}, got {self.method!r}")
 

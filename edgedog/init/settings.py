@@ -61,6 +61,11 @@ class InitSettings(Settings):
     vote_cone: Annotated[int, Range(2, MAX_MATCH_NEIGHBOURS)] = 6
     """Views in each cone of 'edge-vote': about the fewest views that see an edge it must find
     (the floor of a deep pocket is seen by 4 to 6 of 50 views around it)."""
+    vote_sight: Annotated[float, Range(0, MAX_LOGIT)] = 0.0
+    """With `model.view_opacity`, each 'edge-vote' point's view-dependent opacity b starts at
+    this times the mean direction toward the views that voted for it, so that an edge hidden
+    from most views starts drawn only toward those that see it (held until b trains, from
+    `schedule.view_opacity_from_epoch`; capped at `model.view_opacity_cap`). 0: b starts at 0."""
     opacity: Annotated[float, Range(0, 1, open_low=True, open_high=True)] = 0.08
     """Initial opacity of every primitive."""
     k: tuple[Logit, Logit] = (0.0, 0.0)

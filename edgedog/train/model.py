@@ -43,16 +43,21 @@ class EdgeModel:
 
     @classmethod
     def from_points(cls, points: InitialPoints, opacity: float, k_init: tuple[float, float],
-                    generator: torch.Generator) -> EdgeModel:
-        """Primitives at the initial points: isotropic scales, uniformly random rotations."""
+                    generator: torch.Generator, sight_gain: float = 0.0) -> EdgeModel:
+        """Primitives at the initial points: isotropic scales, uniformly random rotations; with
+        `sight_gain` and points that carry a `sight`, the view-dependent opacity's b starts at
+        sight_gain x sight (drawn toward the views that saw the point), else at 0."""
         n = len(points)
         quats = torch.randn(n, 4, generator=generator, dtype=torch.float32)  # uniform on SO(3)
+        dirs = (torch.tensor(points.sight * sight_gain, dtype=torch.float32)
+                if sight_gain and points.sight is not None else None)
         return cls(
             means=torch.tensor(points.positions, dtype=torch.float32),
             log_scales=torch.log(torch.tensor(points.scales, dtype=torch.float32))[:, None].repeat(1, 3),
             quats=quats / quats.norm(dim=1, keepdim=True),
             opacity_logits=torch.full((n,), math.log(opacity / (1 - opacity)), dtype=torch.float32),
             k_raw=torch.tensor(k_init, dtype=torch.float32).repeat(n, 1),
+            opacity_dirs=dirs,
         ).requires_grad_()
 
     @classmethod

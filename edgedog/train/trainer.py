@@ -246,7 +246,9 @@ class Trainer:
             points = keep_on_residual(points, self.scene.cameras, residuals, c.maps.edge_threshold,
                                       c.layers.residual_min_share)
         self.init_report = {"method": points.method, "points": len(points), **points.report}
-        self.model = EdgeModel.from_points(points, c.init.opacity, c.init.k, self.generator).to(self.device)
+        sight_gain = c.init.vote_sight if c.model.view_opacity else 0.0
+        self.model = EdgeModel.from_points(points, c.init.opacity, c.init.k, self.generator,
+                                           sight_gain).to(self.device)
         self.optimizers = Optimizers(self.model, c)
         self.state = self.strategy.initial_state(len(self.model), self.device)
         self.initial_count = len(self.model)
