@@ -92,26 +92,34 @@ class InputWatch:
     before imgui's backend, which chains these callbacks after its own.
 
     Attributes:
+        keys: key presses and typed characters so far (the frame loop draws at once when it grows);
         typed: characters typed so far; drawn: (time.monotonic(), typed) after each frame that
             showed newly typed characters (the studio benchmark's input latency).
     """
 
     def __init__(self, window):
         self.last = time.perf_counter()
-        self.typed = 0
+        self.keys = self.typed = 0
         self.drawn: list[tuple[float, int]] = []
         for install in (glfw.set_cursor_pos_callback, glfw.set_mouse_button_callback,
-                        glfw.set_scroll_callback, glfw.set_key_callback,
-                        glfw.set_window_size_callback, glfw.set_window_focus_callback):
+                        glfw.set_scroll_callback, glfw.set_window_size_callback,
+                        glfw.set_window_focus_callback):
             install(window, self.touch)
+        glfw.set_key_callback(window, self._key)
         glfw.set_char_callback(window, self._char)
 
     def touch(self, *_event) -> None:
         """Count as input now (also for input that does not come through GLFW: a script's)."""
         self.last = time.perf_counter()
 
+    def _key(self, _window, _key, _scancode, action, _mods) -> None:
+        if action != glfw.RELEASE:
+            self.keys += 1
+        self.touch()
+
     def _char(self, *_event) -> None:
         self.typed += 1
+        self.keys += 1
         self.touch()
 
     def frame_drawn(self) -> None:

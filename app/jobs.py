@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import threading
+import time
 import traceback
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -11,11 +12,13 @@ from typing import Any
 
 @dataclass(frozen=True)
 class Done:
-    """A finished job: its `key`, and its `value` or the `error` line it raised."""
+    """A finished job: its `key`, and its `value` or the `error` line it raised; `seconds`: how
+    long it ran."""
 
     key: Any
     value: Any = None
     error: str | None = None
+    seconds: float = 0.0
 
 
 class BackgroundJob:
@@ -43,11 +46,13 @@ class BackgroundJob:
         self.key = key
 
         def run() -> None:
+            started = time.perf_counter()
             try:
-                done = Done(key, function())
-            except Exception as error:  # reported in the UI's status line
+                value, error = function(), None
+            except Exception as exception:  # reported in the UI's status line
                 traceback.print_exc()
-                done = Done(key, error=f"{type(error).__name__}: {error}")
+                value, error = None, f"{type(exception).__name__}: {exception}"
+            done = Done(key, value, error, time.perf_counter() - started)
             with self._lock:
                 self._done = done
 

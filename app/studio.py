@@ -33,8 +33,10 @@ from edgedog.curve_files import EdgeCurves
 from edgedog.errors import EdgeDogError
 from edgedog.train.layered import LayeredRun
 
-INSPECT_EVERY = 1.0
-"""Seconds between two inspector renders while training (they share the CPU with it)."""
+INSPECT_EVERY, INSPECT_SHARE = 1.0, 0.1
+"""Seconds between the starts of two inspector renders: at least INSPECT_EVERY; and, for a newer
+snapshot alone, long enough for them to take at most INSPECT_SHARE of the time (they share the
+CPU with the training)."""
 WINDOW_REQUESTS = ("screenshot", "close")
 """Requests the window acts on (it owns the framebuffer and the loop)."""
 CONFIRMED = "confirmed"
@@ -113,6 +115,7 @@ class Studio:
         self._applied_live: LiveSettings | None = None  # pushed to the next worker at once
         self._inspected = self._extracted = None
         self._last_inspect = self._last_extract = 0.0
+        self._inspect_seconds = 0.0  # how long the last inspector render took
         self._pending_exports: list[str] = []
         self._extract_asked = False
 
@@ -283,6 +286,8 @@ class Studio:
 
     def _poll_jobs(self) -> None:
         done = self.inspector_job.poll()
+        if done is not None:
+            self._inspect_seconds = done.seconds
         if done is not None and self._current(done):
             self._show_inspectors(done)
         done = self.extract_job.poll()
@@ -329,7 +334,10 @@ class Studio:
         key = (*self.run_token, None if latest is None else latest.version, self.state.view, weighting,
                detector, tuple(sorted(name for name, on in shown.items() if on)))
         now = time.monotonic()
-        if key == self._inspected or now - self._last_inspect < INSPECT_EVERY:
+        last = self._inspected
+        newer_only = last is not None and key[:2] + key[3:] == last[:2] + last[3:]  # another version only
+        wait = max(INSPECT_EVERY, self._inspect_seconds / INSPECT_SHARE) if newer_only else INSPECT_EVERY
+        if key == self._inspected or now - self._last_inspect < wait:
             return
         # The 2D render shows the layers the 3D view shows.
         snapshot = visible_subset(latest.snapshot, shown) if latest is not None and info is not None else None

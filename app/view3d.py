@@ -115,8 +115,9 @@ GL_FINISH = _gl_finish()
 
 def finish_without_gil() -> None:
     """Wait for the GL commands issued so far without holding the GIL. A software OpenGL draws
-    when its commands are flushed, often inside the next call that needs the result (imgui's
-    render, which holds the GIL): waiting here lets the training thread run meanwhile."""
+    when its commands are flushed, often inside the next call that needs the result (a copy of
+    the target, imgui's render: moderngl's calls hold the GIL): waiting here lets the training
+    thread run meanwhile."""
     if GL_FINISH is not None:
         GL_FINISH()
 
@@ -140,9 +141,12 @@ class Canvas:
     framebuffer: moderngl.Framebuffer
 
     @classmethod
-    def make(cls, ctx: moderngl.Context, width: int, height: int) -> Canvas:
+    def make(cls, ctx: moderngl.Context, width: int, height: int, magnified: bool = False) -> Canvas:
+        """`magnified`: shown larger than drawn (smoothly); else pixel for pixel, which sampling
+        the nearest texel does for less (a software OpenGL pays for each texel read)."""
         texture = ctx.texture((width, height), 4)
-        texture.filter = moderngl.LINEAR, moderngl.LINEAR  # a reduced picture is shown magnified
+        smooth = moderngl.LINEAR if magnified else moderngl.NEAREST
+        texture.filter = smooth, smooth
         texture.swizzle = "RGB1"  # shown opaque: premultiplied colour over black
         return cls(OffscreenTarget(ctx, width, height), texture, ctx.framebuffer([texture]))
 
@@ -189,13 +193,14 @@ class View3D:
         """Why the last Fisher computation failed (None: it did not)."""
         self._fisher_job, self._fisher_asked, self._fisher_seconds = BackgroundJob("fisher"), -np.inf, 0.0
         self._uploads = 0
+        self._rendered = -np.inf
         self.renders = 0
         """How many times the target was drawn (it is only when the picture changes)."""
 
     def _canvas(self, scale: float) -> Canvas:
         if scale not in self._canvases:
             size = scaled_camera(self.camera.camera(), scale)
-            self._canvases[scale] = Canvas.make(self.ctx, size.width, size.height)
+            self._canvases[scale] = Canvas.make(self.ctx, size.width, size.height, magnified=scale < 1)
         return self._canvases[scale]
 
     @property
@@ -445,12 +450,15 @@ class View3D:
         self._dirty = True
 
     # --- drawing
-    def render(self) -> bool:
+    def render(self, every: float = 0.0) -> bool:
         """Re-draw the picture if anything changed since the last render, or at full resolution
-        once the camera stopped; returns whether it did."""
+        once the camera stopped, but not within `every` seconds of the last render (the view's
+        own rate); returns whether it did."""
         scale = MOVING_SCALE if self.moving else 1.0
-        if not self._dirty and scale == self._scale:
+        now = time.monotonic()
+        if (not self._dirty and scale == self._scale) or now - self._rendered < every:
             return False
+        self._rendered = now
         self._scale = scale
         canvas = self._canvas(scale)
         canvas.target.use()
@@ -458,6 +466,7 @@ class View3D:
         view = scaled_camera(self.camera.camera(), scale)
         self.drawn = self.splats.render(view) if self._show_splats else 0
         self.lines.render(view)
+        finish_without_gil()  # the drawing, else done inside the copy below, which holds the GIL
         self.ctx.copy_framebuffer(canvas.framebuffer, canvas.target.framebuffer)
         finish_without_gil()
         self._dirty = False

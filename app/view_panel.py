@@ -15,6 +15,10 @@ VIEW_BUTTONS = (imgui.ButtonFlags_.mouse_button_left | imgui.ButtonFlags_.mouse_
 HELP = "click: pick a curve or splat   drag: orbit   right/middle or shift drag: pan   wheel: zoom"
 CLICK_SLOP = 3.0
 """A press and release with the mouse moved at most this many points between is a click."""
+TRAINING_VIEW_FPS = 12
+"""The 3D view's own rate while a run trains: at most this many renders a second, however fast
+the window draws (its panels answer keys and text sooner; a software OpenGL's renders cost the
+training CPU time)."""
 
 
 def _mouse(view: View3D, origin: imgui.ImVec2, scale: imgui.ImVec2, pressed: bool) -> None:
@@ -37,7 +41,9 @@ def _mouse(view: View3D, origin: imgui.ImVec2, scale: imgui.ImVec2, pressed: boo
 def draw(studio, area: layout.Area) -> None:
     view = studio.view
     imgui.push_style_var(imgui.StyleVar_.window_padding, imgui.ImVec2(0, 0))
-    flags = imgui.WindowFlags_.no_scrollbar | imgui.WindowFlags_.no_scroll_with_mouse
+    # The picture covers the panel: no background drawn under it.
+    flags = (imgui.WindowFlags_.no_scrollbar | imgui.WindowFlags_.no_scroll_with_mouse
+             | imgui.WindowFlags_.no_background)
     if layout.begin("3D view", area, flags):
         size = imgui.get_content_region_avail()
         if size.x >= 1 and size.y >= 1:
@@ -48,7 +54,7 @@ def draw(studio, area: layout.Area) -> None:
             pressed = imgui.invisible_button("##view3d", size, VIEW_BUTTONS)
             widgets.RECTS["3D view"] = (origin.x, origin.y, origin.x + size.x, origin.y + size.y)
             _mouse(view, origin, scale, pressed and imgui.is_mouse_released(imgui.MouseButton_.left))
-            view.render()
+            view.render(1 / TRAINING_VIEW_FPS if studio.training else 0.0)
             corner = imgui.ImVec2(origin.x + size.x, origin.y + size.y)
             # The target's row 0 is the bottom of the picture: flip it.
             imgui.get_window_draw_list().add_image(texture_ref(view.texture), origin, corner,

@@ -14,6 +14,7 @@ import cv2
 import glfw
 import moderngl
 import numpy as np
+from edgedog.app import layout
 from edgedog.app.display import InputWatch, init_glfw, open_window, scale_for_dpi
 from edgedog.app.script import ScriptDriver
 from edgedog.app.session import Session
@@ -23,10 +24,10 @@ from edgedog.renderer.gl.context import GL_VERSION, window_context
 ACTIVE_FPS, TRAINING_FPS, IDLE_FPS = 30, 20, 2
 """Frame rates while the user interacts (TRAINING_FPS when a run trains meanwhile), and otherwise
 (the rate snapshots come at, see worker.PUBLISH_EVERY). With a software OpenGL a frame costs
-tens of milliseconds of CPU, much of it holding the GIL the training thread needs: idle frames
-are kept rare and interactive ones capped so that training keeps most of its speed, and input
-wakes the loop at once (python -m edgedog.bench.studio measures both rates)."""
-BACKGROUND = (0.08, 0.08, 0.09, 1.0)
+tens of milliseconds of CPU: idle frames are kept rare and interactive ones capped so that
+training keeps most of its speed; input wakes the loop at once, and a key or a typed character
+is drawn in the very next frame (python -m edgedog.bench.studio measures the rates and how soon
+keys are drawn)."""
 
 
 def save_screenshot(ctx: moderngl.Context, path: Path, width: int, height: int) -> Path:
@@ -57,7 +58,7 @@ def _loop(window, ctx: moderngl.Context, studio: Studio, driver: ScriptDriver | 
         width, height = glfw.get_framebuffer_size(window)
         ctx.screen.viewport = (0, 0, width, height)
         ctx.screen.use()
-        ctx.screen.clear(*BACKGROUND)
+        ctx.screen.clear(*layout.background())
         imgui.backends.opengl3_render_draw_data(imgui.get_draw_data())
         for request in requests:
             if request.name == "screenshot":
@@ -69,10 +70,19 @@ def _loop(window, ctx: moderngl.Context, studio: Studio, driver: ScriptDriver | 
             glfw.set_window_title(window, title)
         glfw.swap_buffers(window)
         watch.frame_drawn()
-        cap = TRAINING_FPS if studio.training else ACTIVE_FPS
-        time.sleep(max(0.0, 1 / cap - (time.perf_counter() - started)))
-        fps = cap if watch.active else IDLE_FPS
-        glfw.wait_events_timeout(max(0.0, 1 / fps - (time.perf_counter() - started)))
+        _wait_for_next_frame(watch, TRAINING_FPS if studio.training else ACTIVE_FPS, started)
+
+
+def _wait_for_next_frame(watch: InputWatch, cap: float, started: float) -> None:
+    """Wait until the frame begun at `started` has lasted 1 / `cap` s while the user interacts,
+    1 / IDLE_FPS otherwise; a key or a typed character ends the wait at once (drawn in the next
+    frame), other input only makes the window count as in use."""
+    keys = watch.keys
+    while watch.keys == keys:
+        remaining = 1 / (cap if watch.active else IDLE_FPS) - (time.perf_counter() - started)
+        if remaining <= 0:
+            return
+        glfw.wait_events_timeout(remaining)
 
 
 def _ask_to_quit(window, studio: Studio) -> None:

@@ -383,6 +383,9 @@ def test_the_view_frames_the_scene_and_follows_layers_and_colours(small_box, tmp
     assert view3d.color_range == pytest.approx((0.5, 0.5))  # k = 0 everywhere: t = 1/2
     view3d.snap(2)
     np.testing.assert_allclose(view3d.camera.camera().R, scene.camera(2).R)
+    assert view3d.render(every=0.0)
+    view3d.orbit(5.0, 0.0)  # the view's own rate: not again within `every` seconds of a render
+    assert not view3d.render(every=60.0) and view3d.render(every=0.0)
 
 
 # --- the scripted driver ---------------------------------------------------------------------

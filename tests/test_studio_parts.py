@@ -3,6 +3,7 @@ selections, the folder browser's listing, the scripted keys, and what an aborted
 
 from __future__ import annotations
 
+import time
 from pathlib import Path
 
 import numpy as np
@@ -101,3 +102,29 @@ def test_a_moving_rate_follows_the_last_seconds_not_the_average():
     for second in range(11, 15):
         rate.add(float(second), 100.0 + 2.0 * (second - 10))
     assert rate.rate == pytest.approx(2.0)  # the run's average would still say 7.6
+
+
+def test_a_key_draws_the_next_frame_at_once_and_a_mouse_move_only_at_the_capped_rate(monkeypatch):
+    from edgedog.app import window
+
+    class Watch:
+        keys, active = 0, False
+
+    watch, events = Watch(), []
+
+    def wait_events_timeout(seconds: float) -> None:  # the next event comes after 10 ms
+        time.sleep(min(seconds, 0.01))
+        events.append(seconds)
+        if len(events) == 1:
+            watch.active = True  # a mouse move: the interactive rate (cap) from now on
+        elif len(events) == 3:
+            watch.keys += 1  # a key
+
+    monkeypatch.setattr(window.glfw, "wait_events_timeout", wait_events_timeout)
+    started = time.perf_counter()
+    window._wait_for_next_frame(watch, 2.0, started)  # idle 2 fps, capped at 2 fps: up to 0.5 s
+    assert len(events) == 3 and time.perf_counter() - started < 0.2  # the key ended the wait
+    events.clear()
+    watch.keys, started = 0, time.perf_counter()
+    window._wait_for_next_frame(watch, 50.0, started)  # active: at most 1/50 s, mouse moves or not
+    assert time.perf_counter() - started < 0.05
