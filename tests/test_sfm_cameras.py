@@ -88,6 +88,21 @@ def test_curve_distances_measure_a_known_offset_in_units_and_as_a_share_of_the_o
     assert 1.0 < size < 2.0
 
 
+def test_samples_left_out_of_the_count_still_answer_for_the_other_set():
+    points = _curves().sample(SAMPLE_SPACING)
+    stray = np.array([[5.0, 5.0, 5.0]])
+    a = np.concatenate([points, stray])
+    keep_a = np.arange(len(a)) < len(points)  # the stray sample is not counted
+    keep_b = points[:, 0] < 0.5  # half of b is counted, measured to all of a
+
+    result = curve_distances(a, points, object_size(points), (keep_a, keep_b))
+
+    assert result["points"] == [len(points), int(keep_b.sum())]
+    assert result["a_to_b"]["p90"] < 1e-9 and result["b_to_a"]["p90"] < 1e-9
+    assert curve_distances(a, points, 1.0)["a_to_b"]["p90"] == 0.0  # 1 stray in 10 % is not at p90
+    assert curve_distances(stray, points, 1.0)["a_to_b"]["median"] > 5.0
+
+
 def test_the_table_names_every_direction_and_set():
     points = _curves().sample(SAMPLE_SPACING)
     size = object_size(points)

@@ -6,13 +6,14 @@ sfm` recovers from its photos alone (OUT/sfm-scene, trained in OUT/sfm-run). SfM
 own (any scale, rotation and origin), so the SfM run's curves are carried into the known frame
 by the similarity between the two camera sets: Umeyama on the camera centres, matched by image
 name. The distance between the two curve sets is then the nearest-neighbour distance from each
-sample of one set to the other set (samples every `metrics.SAMPLE_SPACING` scene units), in both
-directions; its median and 90th percentile are reported in scene units and as a share of the
-object's size. When the known scene has masks, the same figures are also given for the samples
-on the object (at most `ON_OBJECT_PX` pixels outside every view's mask), as the SfM scene has
-no masks and its curves may run onto the background.
+sample of one set to the other set (samples every `SPACING` scene units), in both directions;
+its median and 90th percentile are reported in scene units and as a share of the object's size.
+When the known scene has masks, the same figures are also given for the samples
+on the object (at most `ON_OBJECT_PX` pixels outside every view's mask; each measured to the
+whole other set), as the SfM scene has no masks and its curves may run onto the background.
 
-Finished steps in OUT are reused: the SfM scene, and each run (as `edgedog bench layers` does).
+Finished steps in OUT are reused: the SfM scene, and each run (as `edgedog bench layers` does);
+`write_comparison` measures two finished runs in that layout however they were trained.
 """
 
 from __future__ import annotations
@@ -40,6 +41,8 @@ ON_OBJECT_PX = 2.0
 """A curve sample is on the object when it lands at most this many pixels (at the training
 resolution) outside the known scene's mask in every view that sees it."""
 PERCENTILES = {"median": 50, "p90": 90}
+SPACING = SAMPLE_SPACING / 5
+"""Curves are sampled every 0.001 scene units: sampling adds at most half that to a distance."""
 
 
 @dataclass(frozen=True)
@@ -113,22 +116,23 @@ def distance_summary(distances: np.ndarray, size: float) -> dict[str, float | No
     return result
 
 
-def curve_distances(a: np.ndarray, b: np.ndarray, size: float) -> dict:
+def curve_distances(a: np.ndarray, b: np.ndarray, size: float,
+                    keep: tuple[np.ndarray, np.ndarray] | None = None) -> dict:
     """Nearest-neighbour distances between two point sets sampled on curves.
 
     Args:
         a, b: (N, 3), (M, 3) curve samples in one frame; size: the object's size, for the shares.
+        keep: (N,), (M,) bool: the samples of each set whose distance counts (e.g. those on the
+            object); each is measured to the nearest sample of the whole other set, so that a
+            counted sample is never far only because its counterpart was left out.
     Returns:
-        {"points": [N, M], "a_to_b", "b_to_a", "symmetric" (both directions' distances pooled):
-        `distance_summary` each}.
+        {"points": [counted in a, counted in b], "a_to_b", "b_to_a", "symmetric" (both
+        directions' distances pooled): `distance_summary` each}.
     """
-    if len(a) == 0 or len(b) == 0:
-        empty = np.empty(0)
-        a_to_b = b_to_a = empty
-    else:
-        a_to_b = cKDTree(b).query(a)[0]
-        b_to_a = cKDTree(a).query(b)[0]
-    return {"points": [len(a), len(b)], "a_to_b": distance_summary(a_to_b, size),
+    keep_a, keep_b = keep if keep is not None else (np.ones(len(a), bool), np.ones(len(b), bool))
+    a_to_b = cKDTree(b).query(a[keep_a])[0] if len(b) else np.empty(0)
+    b_to_a = cKDTree(a).query(b[keep_b])[0] if len(a) else np.empty(0)
+    return {"points": [len(a_to_b), len(b_to_a)], "a_to_b": distance_summary(a_to_b, size),
             "b_to_a": distance_summary(b_to_a, size),
             "symmetric": distance_summary(np.concatenate([a_to_b, b_to_a]), size)}
 
@@ -182,9 +186,23 @@ def run_sfm_vs_cameras(scene_path: Path, out: Path, preset_name: str, config: Tr
     sfm = load_scene(sfm_path)
     downscale = training_downscale(known, sfm)
     with RunLock.acquire(out):
-        known_run = _train(out / CAMERAS_RUN, scene_path, preset_name,
-                           with_values(config, {"maps.downscale": downscale}), progress)
-        sfm_run = _train(out / SFM_RUN, sfm_path, preset_name, config, progress)
+        _train(out / CAMERAS_RUN, scene_path, preset_name, with_values(config, {"maps.downscale": downscale}),
+               progress)
+        _train(out / SFM_RUN, sfm_path, preset_name, config, progress)
+    return write_comparison(scene_path, out, preset_name)
+
+
+def write_comparison(scene_path: Path, out: Path, preset_name: str) -> dict:
+    """Compare the finished runs OUT/cameras-run (on the scene at `scene_path`) and OUT/sfm-run (on
+    OUT/sfm-scene), whichever way they were trained; write OUT/sfm_vs_cameras.json and .md.
+
+    Returns:
+        the record written to OUT/sfm_vs_cameras.json.
+    """
+    from edgedog.files import read_json
+
+    known, sfm = load_scene(scene_path), load_scene(out / SFM_SCENE)
+    downscale = training_downscale(known, sfm)
     similarity = camera_similarity(camera_centres(sfm), camera_centres(known))
     record = compare_runs(out / CAMERAS_RUN, out / SFM_RUN, similarity,
                           load_scene(scene_path, downscale=downscale))
@@ -193,43 +211,43 @@ def run_sfm_vs_cameras(scene_path: Path, out: Path, preset_name: str, config: Tr
     record.update({"scene": str(known.root), "sfm_scene": str(sfm.root), "preset": preset_name,
                    "views": len(known), "registered": len(sfm), "downscale": downscale,
                    "size": [known.camera(0).width // downscale, known.camera(0).height // downscale],
-                   "train_seconds": {CAMERAS_RUN: known_run.log["train_seconds"],
-                                     SFM_RUN: sfm_run.log["train_seconds"]}})
+                   "train_seconds": {run: read_json(out / run / "log.json")["train_seconds"]
+                                     for run in (CAMERAS_RUN, SFM_RUN)}})
     atomic_write_json(out / FILES[0], record)
     atomic_write_bytes(out / FILES[1], markdown(record).encode())
     return record
 
 
-def _train(run_dir: Path, scene: Path, preset_name: str, config: TrainConfig, progress: bool):
+def _train(run_dir: Path, scene: Path, preset_name: str, config: TrainConfig, progress: bool) -> None:
     from edgedog.train.lifecycle import REUSE, execute, plan_run
 
-    return execute(plan_run(run_dir, scene, preset_name, config, REUSE).check(), progress=progress)
+    execute(plan_run(run_dir, scene, preset_name, config, REUSE).check(), progress=progress)
 
 
 def compare_runs(known_run: Path, sfm_run: Path, similarity: Similarity, known: Scene) -> dict:
     """The distances between the known-camera run's curves and the SfM run's carried by
     `similarity`, over all samples and, when `known` (at the runs' resolution) has masks, over
     the samples on the object."""
-    known_points = read_edges(known_run / "curves.json").sample(SAMPLE_SPACING)
-    sfm_curves: EdgeCurves = read_edges(sfm_run / "curves.json").transformed(similarity.matrix)
-    sfm_points = sfm_curves.sample(SAMPLE_SPACING)
-    size = object_size(known_points)
-    sets = {"all": (sfm_points, known_points)}
     from edgedog.curves.filtering import pixels_outside_masks
 
+    known_points = read_edges(known_run / "curves.json").sample(SPACING)
+    sfm_curves: EdgeCurves = read_edges(sfm_run / "curves.json").transformed(similarity.matrix)
+    sfm_points = sfm_curves.sample(SPACING)
+    size = object_size(known_points)
+    sets = {"all": None}
     outside = [pixels_outside_masks(points, known) for points in (sfm_points, known_points)]
     if outside[0] is not None:
-        on = [points[o <= ON_OBJECT_PX] for points, o in zip((sfm_points, known_points), outside)]
-        size = object_size(on[1])
-        sets["on_object"] = tuple(on)
+        sets["on_object"] = (outside[0] <= ON_OBJECT_PX, outside[1] <= ON_OBJECT_PX)
+        size = object_size(known_points[sets["on_object"][1]])
     residuals = similarity.residuals
     return {"similarity": {"scale": similarity.scale, "rotation": similarity.rotation.tolist(),
                            "translation": similarity.translation.tolist(), "matched": len(similarity.names),
                            "centre_residual": {"median": float(np.median(residuals)),
                                                "max": float(residuals.max()),
                                                "rms": float(np.sqrt(np.mean(residuals**2)))}},
-            "object_size": size, "spacing": SAMPLE_SPACING,
-            "distances": {name: curve_distances(a, b, size) for name, (a, b) in sets.items()}}
+            "object_size": size, "spacing": SPACING,
+            "distances": {name: curve_distances(sfm_points, known_points, size, keep)
+                          for name, keep in sets.items()}}
 
 
 def markdown(record: dict) -> str:
