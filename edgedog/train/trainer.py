@@ -444,7 +444,7 @@ class Trainer:
                     time.sleep(0.05)
                     continue
                 loss = self.step()
-                bar.update(1)
+                bar.update(self.step_index - bar.n)  # a coarse stage ended early skips steps
                 if self.step_index % 25 == 0:
                     bar.set_postfix(epoch=self.epoch, loss=f"{loss:.4f}", primitives=len(self.model))
         self.write_outputs()
