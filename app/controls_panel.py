@@ -7,6 +7,7 @@ the next (re)start.
 from __future__ import annotations
 
 import math
+import time
 
 from edgedog.app import STUDIO_PRESET, layout, widgets
 from edgedog.app.layers import layer_members, list_new_layers
@@ -51,7 +52,7 @@ def _training(studio) -> None:
     phase = None if worker is None else worker.phase
     if worker is not None:  # above the buttons: their tooltips open below the mouse
         if worker.alive:  # the rate now, over the last few seconds
-            imgui.text(f"{phase}  {studio.step_rate.rate:.1f} steps/s  {worker.steps} steps")
+            imgui.text(f"{phase}  {studio.step_rate.readout(time.monotonic()):.1f} steps/s")
             imgui.set_item_tooltip(f"steps per second over the last {studio.step_rate.seconds:.0f} s; "
                                    f"{worker.steps_per_second:.1f} on average")
         else:
@@ -209,8 +210,9 @@ def draw(studio, area: layout.Area) -> None:
 def draw_status(studio, area: layout.Area) -> None:
     """One line: where help is, and the last thing done or the trainer's error."""
     if layout.begin("##status", area, imgui.WindowFlags_.no_title_bar | imgui.WindowFlags_.no_scrollbar):
-        imgui.text_disabled(f"F1: help | {studio.frame_rate.rate:.0f} fps |")
-        imgui.set_item_tooltip("frames the window draws per second, over the last few seconds")
+        imgui.text_disabled(f"F1: help | {studio.frame_rate.readout(time.monotonic()):.0f} fps |")
+        imgui.set_item_tooltip("frames the window draws per second, over the last few seconds (it draws "
+                               "one when something changed: at once for a key)")
         imgui.same_line()
         worker = studio.worker
         if worker is not None and worker.error:

@@ -77,8 +77,13 @@ class Studio:
         self.exports: list[Path] = []
         self.stop_seconds: float | None = None
         self.frames = 0
+        """Frames built (`frame` calls)."""
+        self.frames_drawn = 0
+        """Frames the window drew and showed (it skips those that repeat the last: redraw.py)."""
         self.frame_rate = MovingRate()
         """Frames drawn per second, now."""
+        self.inspector_uploads = 0
+        """Inspector images uploaded (a frame that shows new ones is drawn)."""
         self.typed_drawn: list[tuple[float, int]] = []
         """(time.monotonic(), characters typed so far) when a frame showed newly typed ones: the
         window's (display.InputWatch.drawn), for the studio benchmark's input latency."""
@@ -175,7 +180,7 @@ class Studio:
         """Update and draw everything; returns the requests only the window can act on."""
         self.frames += 1
         now = time.monotonic()
-        self.frame_rate.add(now, self.frames)
+        self.frame_rate.add(now, self.frames_drawn)
         if self.worker is not None:
             self.step_rate.add(now, self.worker.steps)
         shortcuts.handle_keys(self)
@@ -306,6 +311,7 @@ class Studio:
         self.inspectors, self.inspected_layers = done.value, "+".join(done.key[-1])
         for texture, inspector in zip(self.textures, self.inspectors):
             texture.set(inspector.rgba)
+        self.inspector_uploads += 1
 
     def _take_extraction(self, done: Done) -> None:
         if done.error:
@@ -424,6 +430,11 @@ class Studio:
             self.confirm = None
 
     @property
+    def pictures(self) -> int:
+        """Counts the re-drawn images the panels show (the 3D view's and the inspectors')."""
+        return self.view.renders + self.inspector_uploads
+
+    @property
     def title(self) -> str:
         """The window's title: the scene and the run shown."""
         run = self.session.run_dir
@@ -453,7 +464,8 @@ class Studio:
                  "loss": None if self.latest is None else self.latest.snapshot.loss,
                  "elapsed": None if self.latest is None else self.latest.elapsed,
                  "view_at_home": self.view.at_home, "view_index": self.state.view,
-                 "frames": self.frames, "view_renders": self.view.renders, "cpu_seconds": time.process_time(),
+                 "frames": self.frames, "frames_drawn": self.frames_drawn, "view_renders": self.view.renders,
+                 "cpu_seconds": time.process_time(),
                  "help": self.state.show_help, "cut_widgets": sorted(widgets.CUT),
                  "plots_tabbed": self.plots_tabbed,
                  "dialog": None if self.dialog is None else str(self.dialog.path),

@@ -16,18 +16,20 @@ import moderngl
 import numpy as np
 from edgedog.app import layout
 from edgedog.app.display import InputWatch, init_glfw, open_window, scale_for_dpi
+from edgedog.app.redraw import Redraw
 from edgedog.app.script import ScriptDriver
 from edgedog.app.session import Session
 from edgedog.app.studio import Studio
 from edgedog.renderer.gl.context import GL_VERSION, window_context
 
-ACTIVE_FPS, TRAINING_FPS, IDLE_FPS = 30, 20, 2
+ACTIVE_FPS, TRAINING_FPS, IDLE_FPS, TRAINING_IDLE_FPS = 30, 20, 2, 10
 """Frame rates while the user interacts (TRAINING_FPS when a run trains meanwhile), and otherwise
-(the rate snapshots come at, see worker.PUBLISH_EVERY). With a software OpenGL a frame costs
-tens of milliseconds of CPU: idle frames are kept rare and interactive ones capped so that
-training keeps most of its speed; input wakes the loop at once, and a key or a typed character
-is drawn in the very next frame (python -m edgedog.bench.studio measures the rates and how soon
-keys are drawn)."""
+(TRAINING_IDLE_FPS while a run trains: its snapshots and readouts show within a tenth of a
+second). A frame is built at each (cheap), but drawn only when it differs from the one shown
+(redraw.py): with a software OpenGL drawing costs tens of milliseconds of CPU, which training
+needs; interactive frames are capped so that training keeps most of its speed. Input wakes the
+loop at once, and a key or a typed character is drawn in the very next frame (python -m
+edgedog.bench.studio measures the rates and how soon keys are drawn)."""
 
 
 def save_screenshot(ctx: moderngl.Context, path: Path, width: int, height: int) -> Path:
@@ -42,7 +44,7 @@ def save_screenshot(ctx: moderngl.Context, path: Path, width: int, height: int) 
 
 def _loop(window, ctx: moderngl.Context, studio: Studio, driver: ScriptDriver | None, watch: InputWatch
           ) -> None:
-    title = None
+    title, redraw = None, Redraw()
     while not glfw.window_should_close(window):
         started = time.perf_counter()
         glfw.poll_events()
@@ -55,31 +57,40 @@ def _loop(window, ctx: moderngl.Context, studio: Studio, driver: ScriptDriver | 
         imgui.new_frame()
         requests = studio.frame()
         imgui.render()
-        width, height = glfw.get_framebuffer_size(window)
-        ctx.screen.viewport = (0, 0, width, height)
-        ctx.screen.use()
-        ctx.screen.clear(*layout.background())
-        imgui.backends.opengl3_render_draw_data(imgui.get_draw_data())
-        for request in requests:
-            if request.name == "screenshot":
-                save_screenshot(ctx, Path(request.args["path"]), width, height)
-            elif request.name == "close":
-                glfw.set_window_should_close(window, True)
+        if redraw.needed(imgui.get_draw_data(), studio.pictures) or requests:
+            _draw(window, ctx, requests)
+            studio.frames_drawn += 1
+            watch.frame_drawn()
         if studio.title != title:
             title = studio.title
             glfw.set_window_title(window, title)
-        glfw.swap_buffers(window)
-        watch.frame_drawn()
-        _wait_for_next_frame(watch, TRAINING_FPS if studio.training else ACTIVE_FPS, started)
+        idle = TRAINING_IDLE_FPS if studio.training else IDLE_FPS
+        _wait_for_next_frame(watch, TRAINING_FPS if studio.training else ACTIVE_FPS, idle, started)
 
 
-def _wait_for_next_frame(watch: InputWatch, cap: float, started: float) -> None:
+def _draw(window, ctx: moderngl.Context, requests: list) -> None:
+    """Draw imgui's frame, act on the requests only the window can (screenshots of this frame,
+    closing), and show the frame."""
+    width, height = glfw.get_framebuffer_size(window)
+    ctx.screen.viewport = (0, 0, width, height)
+    ctx.screen.use()
+    ctx.screen.clear(*layout.background())
+    imgui.backends.opengl3_render_draw_data(imgui.get_draw_data())
+    for request in requests:
+        if request.name == "screenshot":
+            save_screenshot(ctx, Path(request.args["path"]), width, height)
+        elif request.name == "close":
+            glfw.set_window_should_close(window, True)
+    glfw.swap_buffers(window)
+
+
+def _wait_for_next_frame(watch: InputWatch, cap: float, idle: float, started: float) -> None:
     """Wait until the frame begun at `started` has lasted 1 / `cap` s while the user interacts,
-    1 / IDLE_FPS otherwise; a key or a typed character ends the wait at once (drawn in the next
+    1 / `idle` otherwise; a key or a typed character ends the wait at once (drawn in the next
     frame), other input only makes the window count as in use."""
     keys = watch.keys
     while watch.keys == keys:
-        remaining = 1 / (cap if watch.active else IDLE_FPS) - (time.perf_counter() - started)
+        remaining = 1 / (cap if watch.active else idle) - (time.perf_counter() - started)
         if remaining <= 0:
             return
         glfw.wait_events_timeout(remaining)

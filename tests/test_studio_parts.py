@@ -122,9 +122,30 @@ def test_a_key_draws_the_next_frame_at_once_and_a_mouse_move_only_at_the_capped_
 
     monkeypatch.setattr(window.glfw, "wait_events_timeout", wait_events_timeout)
     started = time.perf_counter()
-    window._wait_for_next_frame(watch, 2.0, started)  # idle 2 fps, capped at 2 fps: up to 0.5 s
+    window._wait_for_next_frame(watch, 2.0, 2.0, started)  # idle 2 fps, capped at 2 fps: up to 0.5 s
     assert len(events) == 3 and time.perf_counter() - started < 0.2  # the key ended the wait
     events.clear()
     watch.keys, started = 0, time.perf_counter()
-    window._wait_for_next_frame(watch, 50.0, started)  # active: at most 1/50 s, mouse moves or not
+    window._wait_for_next_frame(watch, 50.0, 2.0, started)  # active: at most 1/50 s, mouse moves or not
     assert time.perf_counter() - started < 0.05
+
+
+def test_a_frame_is_drawn_only_when_it_differs_from_the_one_shown():
+    import ctypes
+    from types import SimpleNamespace
+
+    from edgedog.app.redraw import VERTEX_BYTES, Redraw
+    from imgui_bundle import imgui
+
+    vertices = ctypes.create_string_buffer(3 * VERTEX_BYTES)
+    buffer = SimpleNamespace(size=lambda: 3, data_address=lambda: ctypes.addressof(vertices))
+    draw_list = SimpleNamespace(vtx_buffer=buffer, cmd_buffer=SimpleNamespace(size=lambda: 1))
+    texture = SimpleNamespace(status=imgui.ImTextureStatus.ok)
+    frame = SimpleNamespace(display_size=imgui.ImVec2(800, 600), cmd_lists=[draw_list], textures=[texture])
+    redraw = Redraw()
+    assert redraw.needed(frame, pictures=0) and not redraw.needed(frame, pictures=0)
+    vertices[VERTEX_BYTES + 1] = b"\x01"  # a vertex moved
+    assert redraw.needed(frame, pictures=0) and not redraw.needed(frame, pictures=0)
+    assert redraw.needed(frame, pictures=1)  # the 3D view or an inspector was re-drawn
+    texture.status = imgui.ImTextureStatus.want_updates  # e.g. new glyphs for the font atlas
+    assert redraw.needed(frame, pictures=1)

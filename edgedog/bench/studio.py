@@ -9,8 +9,9 @@ frame, as a drag does), type a path into the folder browser with real key presse
 server's XTest extension, as xdotool does; the window under the pointer gets them when no window
 manager runs), then pause and orbit again (the UI alone). Then trains the same run headless to
 the same step, so that each phase's rate is compared with the headless rate over the same steps.
-Prints one row per phase and writes the figures as JSON (--out). A measurement, not a test: the
-figures depend on the machine and on what else runs on it.
+Prints one row per phase (fps: frames built, each showing what changed; drawn/s: those that
+differed from the last and were drawn) and writes the figures as JSON (--out). A measurement,
+not a test: the figures depend on the machine and on what else runs on it.
 """
 
 from __future__ import annotations
@@ -126,6 +127,7 @@ def phase_figures(start: dict, end: dict, headless: np.ndarray) -> dict:
         headless_rate = round((last - first) / (headless[last] - headless[first]), 1)
     rate = (last - first) / seconds
     return {"seconds": round(seconds, 2), "fps": round((end["frames"] - start["frames"]) / seconds, 1),
+            "drawn_per_second": round((end["frames_drawn"] - start["frames_drawn"]) / seconds, 1),
             "steps_per_second": round(rate, 1), "headless_steps_per_second": headless_rate,
             "share_of_headless": None if not headless_rate else round(rate / headless_rate, 2),
             "view_renders_per_second": round((end["view_renders"] - start["view_renders"]) / seconds, 1),
@@ -211,12 +213,13 @@ def main(argv: list[str] | None = None) -> int:
     options = [arg for override in args.overrides for arg in ("--set", override)]
     options += [] if args.preset is None else ["--preset", args.preset]
     figures = measure(args.scene, args.seconds, args.size, options)
-    print(f"{'phase':<22} {'fps':>6} {'steps/s':>8} {'headless':>8} {'share':>6} {'CPU %':>6}")
+    print(f"{'phase':<22} {'fps':>6} {'drawn/s':>8} {'steps/s':>8} {'headless':>8} {'share':>6} {'CPU %':>6}")
     for name, row in figures.items():
         headless, share = row["headless_steps_per_second"], row["share_of_headless"]
         headless = "-" if headless is None else f"{headless:.1f}"
         share = "-" if share is None else f"{share:.0%}"
-        print(f"{name:<22} {row['fps']:6.1f} {row['steps_per_second']:8.1f} {headless:>8} {share:>6} "
+        print(f"{name:<22} {row['fps']:6.1f} {row['drawn_per_second']:8.1f} {row['steps_per_second']:8.1f} "
+              f"{headless:>8} {share:>6} "
               f"{row['cpu_percent']:6d}")
     typing = figures["training + typing"]
     print(f"typing {typing['keys']} keys: {typing['keys_lost']} lost, drawn after "
