@@ -3,7 +3,8 @@
 GL and GLFW stay on the main thread; the trainer runs in a worker thread and publishes
 immutable snapshots that the window reads.
 
-- window.py, display.py: GLFW, the GL context, imgui's backends and the frame loop.
+- window.py, display.py, redraw.py: GLFW, the GL context, imgui's backends and the frame loop,
+  which draws a frame only when it differs from the one shown.
 - studio.py: one frame: requests, live controls, 3D view, inspectors, curves, panels.
 - state.py: what the panels edit; script.py: a scripted driver feeding the same state.
 - session.py, worker.py: the scene, its run folders, and the training thread.
