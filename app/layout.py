@@ -61,10 +61,17 @@ def studio_layout() -> dict[str, Area]:
 
 
 def begin(title: str, area: Area, flags: int = 0) -> bool:
-    """Begin a panel window pinned to `area` (end it with imgui.end() whatever this returns)."""
+    """Begin a panel window pinned to `area` (end it with imgui.end() whatever this returns),
+    outlined as imgui outlines a window with a background."""
     imgui.set_next_window_pos(imgui.ImVec2(area.x, area.y))
     imgui.set_next_window_size(imgui.ImVec2(area.width, area.height))
-    return imgui.begin(title, None, PANEL_FLAGS | flags)[0]
+    shown = imgui.begin(title, None, PANEL_FLAGS | flags)[0]
+    low, high = imgui.ImVec2(area.x, area.y), imgui.ImVec2(area.x + area.width, area.y + area.height)
+    draw = imgui.get_window_draw_list()
+    draw.push_clip_rect(low, high)
+    draw.add_rect(low, high, imgui.get_color_u32(imgui.Col_.border))
+    draw.pop_clip_rect()
+    return shown
 
 
 def background() -> tuple[float, float, float, float]:
