@@ -127,12 +127,14 @@ def test_a_settled_coarse_stage_ends_early(builtin_scene_dir, tmp_path):
     assert [h["epoch"] for h in log["history"]] == [0, 1, 2, 3, 6, 7] and log["stopped"] is None
     assert {"event": "converged", "ended": "coarse stage", "skipped_to": 6, "epoch": 3} in log["events"]
     assert trained_to_end(log, 8)
-    # 'both': then the fine stage settles too (epochs 7, 8, 9 of 12), and the run ends.
-    config = stop_config(stop="both", epochs=12, coarse_downscale=2, fine_from_epoch=6, **FROZEN)
+    # 'both': then the fine stage settles too (from epoch 9 on, of 12), and the run ends from
+    # stop_from_epoch on (which the coarse stage does not wait for).
+    config = stop_config(stop="both", epochs=12, coarse_downscale=2, fine_from_epoch=6, stop_from_epoch=10,
+                         **FROZEN)
     both = Trainer(scene, config, tmp_path / "both", progress=False)
     both.run()
-    assert [h["epoch"] for h in both.history] == [0, 1, 2, 3, 6, 7, 8, 9]
-    assert both.stopped == {"epoch": 9, "ceiling": 12, "reason": "converged"}
+    assert [h["epoch"] for h in both.history] == [0, 1, 2, 3, 6, 7, 8, 9, 10]
+    assert both.stopped == {"epoch": 10, "ceiling": 12, "reason": "converged"}
 
 
 def test_off_leaves_the_outputs_as_they_were(builtin_scene_dir, tmp_path):

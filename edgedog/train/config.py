@@ -206,7 +206,8 @@ class ScheduleSettings(Settings):
     stage to its end. 'both': the coarse stage ends when settled, then the run
     when settled again in the fine stage. 'off': every epoch is trained."""
     stop_from_epoch: Epoch = 0
-    """The first epoch at whose end the run may stop (or the coarse stage end)."""
+    """The first epoch at whose end the run may stop ('run', 'both'; a settled coarse stage
+    ends whenever it settles)."""
     stop_patience: Annotated[int, Range(1, MAX_EPOCHS)] = 3
     """Epochs in a row that must meet `stop_shift` and `stop_loss_change` with no primitives
     added by density control (not scaled with `epochs`)."""

@@ -409,10 +409,10 @@ class Trainer:
 
     def _settle(self, epoch: int, centres: torch.Tensor, loss: float, added: bool) -> dict:
         """The convergence test at the end of `epoch` (edgedog.train.convergence); when it has
-        converged from `schedule.stop_from_epoch` on, end the run ('run', or 'both' in the fine
-        stage: `stopped` is set) or the coarse stage ('coarse', 'both': the next step is the
-        first of `schedule.fine_from_epoch`), with an event saying so. Returns the epoch's
-        record for the history.
+        converged, end the run ('run', or 'both' in the fine stage, from
+        `schedule.stop_from_epoch` on: `stopped` is set) or the coarse stage ('coarse', 'both':
+        the next step is the first of `schedule.fine_from_epoch`), with an event saying so.
+        Returns the epoch's record for the history.
 
         Args:
             centres: (N, 3) the centres before the epoch's density events; `added`: whether
@@ -422,13 +422,13 @@ class Trainer:
         views = self.views_at(epoch)
         record = self.convergence.update(s, centres, loss, added, self.model.means,
                                          lambda: self.strategy.fisher_scores(self.model, views))
-        if not record["converged"] or epoch < s.stop_from_epoch or epoch + 1 >= s.epochs:
+        if not record["converged"] or epoch + 1 >= s.epochs:
             return record
         coarse = epoch + 1 < s.fine_from_epoch
-        if s.stop == "run" or (s.stop == "both" and not coarse):
+        if (s.stop == "run" or (s.stop == "both" and not coarse)) and epoch >= s.stop_from_epoch:
             self.stopped = {"epoch": epoch, "ceiling": s.epochs, "reason": "converged"}
             self.events.append({"event": "converged", "ended": "run", "epoch": epoch})
-        elif coarse:
+        elif coarse and s.stop != "run":
             self.events.append({"event": "converged", "ended": "coarse stage",
                                 "skipped_to": s.fine_from_epoch, "epoch": epoch})
             self.step_index = s.fine_from_epoch * len(self.cameras)
