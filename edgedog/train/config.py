@@ -61,6 +61,9 @@ MAX_NEIGHBOURS = 32
 MAX_COPIES = 8
 """Copies of one primitive at one place: EdgeGaussians make 2; the copies share their source's
 parameters, so many more add nothing but noise."""
+MIN_SPACING = 1e-6
+"""The spacing control hashes centres into cells of half the spacing: a millionth of a scene unit
+(or of the object's size) is far below any edge detail, and keeps the cell indices small."""
 MAX_LAYERS = 8
 """Multi-granularity levels (the paper uses 3); each trains a whole run."""
 MAX_SEED = 2**32 - 1
@@ -304,7 +307,7 @@ class StrategySettings(Settings):
     `spacing_keep` stays and the others are removed, and an elongated primitive whose largest
     scale exceeds `spacing` is split along its major axis (`spacing_split`). Empty: no spacing
     control."""
-    spacing: Annotated[float, Range(0, open_low=True)] = 0.01
+    spacing: Annotated[float, Range(MIN_SPACING)] = 0.01
     """Target distance between neighbouring primitives along an edge, in scene units (0.01: 1 cm
     of an ABC object, twice its 5 mm ground-truth spacing), or with `spacing_relative` as a share
     of the primitives' extent."""

@@ -42,6 +42,12 @@ def spacing_length(means: np.ndarray, spacing: float, relative: bool) -> float:
     return spacing * float((high - low).max())
 
 
+def cell_indices(means: np.ndarray, side: float) -> np.ndarray:
+    """(N, 3) int64 index of the cell of side `side` holding each centre of `means` (N, 3),
+    counted from the lowest corner of their box (small whatever the coordinates' origin)."""
+    return np.floor((means - means.min(axis=0)) / side).astype(np.int64)
+
+
 def edge_directions(means: np.ndarray, neighbours: int, spacing: float) -> np.ndarray:
     """(N, 3) unit direction of the edge at each centre of `means` (N, 3), on the scale of the
     spacing whatever the density: the centres are averaged in cells of side spacing / 2, and
@@ -50,8 +56,8 @@ def edge_directions(means: np.ndarray, neighbours: int, spacing: float) -> np.nd
     n = len(means)
     if n < 2 or spacing <= 0:
         return np.tile(np.array([1.0, 0.0, 0.0]), (n, 1))
-    _, cell, members = np.unique(np.floor(means / (spacing / 2)).astype(np.int64), axis=0,
-                                 return_inverse=True, return_counts=True)
+    _, cell, members = np.unique(cell_indices(means, spacing / 2), axis=0, return_inverse=True,
+                                 return_counts=True)
     cell = cell.reshape(-1)
     averages = np.stack([np.bincount(cell, weights=means[:, k]) for k in range(3)], axis=1) / members[:, None]
     if len(averages) < 2:
@@ -82,7 +88,7 @@ def redundant(means: np.ndarray, axes: np.ndarray, rank: np.ndarray, spacing: fl
     removed = np.zeros(n, dtype=bool)
     if n < 2 or spacing <= 0:
         return removed
-    cells = [tuple(c) for c in np.floor(means / spacing).astype(np.int64).tolist()]
+    cells = [tuple(c) for c in cell_indices(means, spacing).tolist()]
     points, directions = means.tolist(), axes.tolist()
     around = [(x, y, z) for x in (-1, 0, 1) for y in (-1, 0, 1) for z in (-1, 0, 1)]
     limit, least_cos = spacing * spacing, math.cos(math.radians(max_angle))
