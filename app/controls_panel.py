@@ -56,7 +56,7 @@ def _training(studio) -> None:
             imgui.set_item_tooltip(f"steps per second over the last {studio.step_rate.seconds:.0f} s; "
                                    f"{worker.steps_per_second:.1f} on average")
         else:
-            imgui.text(f"{phase}  {worker.steps_per_second:.1f} steps/s on average  {worker.steps} steps")
+            imgui.text(f"{phase}  {worker.steps} steps at {worker.steps_per_second:.1f}/s")
     if phase in (None, FINISHED, STOPPED, FAILED):
         if widgets.button(_start_label(studio), "train: the opened run folder continues where it was saved; "
                           "otherwise a new run folder under the runs folder (space)"):
