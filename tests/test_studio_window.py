@@ -86,14 +86,19 @@ def run_driven(actions: list[dict], args: list, display: str, folder: Path,
     return subprocess.CompletedProcess(studio.args, studio.returncode, out, err), outcome
 
 
-def run_with_keys(actions: list[dict], keys: list[str | float], args: list, display: str, folder: Path
+def run_with_keys(actions: list[dict], keys: list[str | float | Path], args: list, display: str, folder: Path
                   ) -> tuple[subprocess.CompletedProcess, dict]:
-    """`run_driven` with xdotool typing `keys`: a key name (X's, e.g. "F1", "Escape", "ctrl+o"), or
-    seconds to wait."""
+    """`run_driven` with xdotool typing `keys`: a key name (X's, e.g. "F1", "Escape", "ctrl+o"),
+    seconds to wait, or a file to wait for (one the script writes with "save_rects" once the
+    studio is ready for the keys that follow)."""
     def type_keys(window: str, env: dict, studio: subprocess.Popen) -> None:
         for key in keys:
             if isinstance(key, (int, float)):
                 time.sleep(key)
+            elif isinstance(key, Path):
+                deadline = time.monotonic() + 120
+                while not key.is_file() and studio.poll() is None and time.monotonic() < deadline:
+                    time.sleep(0.1)
             elif studio.poll() is None:
                 subprocess.run(["xdotool", "key", "--clearmodifiers", key], env=env, timeout=30)
 
@@ -296,7 +301,9 @@ KEY_PAUSE = 2.0
 def test_real_keys_close_the_topmost_window_and_quitting_asks_first(box, window_manager, tmp_path):
     # Issue 40: after F1 then Esc, Ctrl+O must open the browser; Esc must close it and never quit;
     # Esc with nothing open and q while a run trains only ask (Esc: no).
+    ready = tmp_path / "training.json"  # the keys wait for the run to train
     actions = [{"request": "start"}, {"expect": {"phase": "training"}, "timeout": 60},
+               {"save_rects": str(ready)},
                {"expect": {"help": True}, "timeout": 60},
                {"expect": {"help": False}, "timeout": 20},
                {"expect": {"dialog": str(box.parent)}, "timeout": 20},
@@ -308,8 +315,8 @@ def test_real_keys_close_the_topmost_window_and_quitting_asks_first(box, window_
                {"expect": {"confirm": None, "phase": "training"}, "timeout": 20},
                {"mark": "answered"},
                {"request": "close"}]
-    keys = [8.0, "F1", KEY_PAUSE, "Escape", KEY_PAUSE, "ctrl+o", KEY_PAUSE, "Escape", KEY_PAUSE, "Escape",
-            KEY_PAUSE, "Escape", KEY_PAUSE, "q", KEY_PAUSE, "Escape"]
+    keys = [ready, KEY_PAUSE, "F1", KEY_PAUSE, "Escape", KEY_PAUSE, "ctrl+o", KEY_PAUSE, "Escape", KEY_PAUSE,
+            "Escape", KEY_PAUSE, "Escape", KEY_PAUSE, "q", KEY_PAUSE, "Escape"]
     result, outcome = run_with_keys(actions, keys, [box, "--runs", tmp_path / "runs", "--set", "epochs=5000",
                                                     *FAST], window_manager, tmp_path)
     probe = assert_ok(result, outcome)
