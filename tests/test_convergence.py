@@ -143,3 +143,17 @@ def test_off_leaves_the_outputs_as_they_were(builtin_scene_dir, tmp_path):
     log = json.loads((tmp_path / "run" / "log.json").read_text())
     assert "stopped" not in log and set(log["history"][0]) == {"epoch", "loss", "primitives_before_events",
                                                                 "primitives", "seconds"}
+
+
+def test_a_run_folder_stopped_when_converged_is_finished(builtin_scene_dir, tmp_path):
+    from edgedog.scenes import load_scene
+    from edgedog.train.lifecycle import FINISHED, REUSE, is_finished, plan_run
+    from edgedog.train.run_folder import RunFolder, write_run
+
+    config = stop_config(stop="run", **FROZEN)
+    run = RunFolder(tmp_path / "run", load_scene(builtin_scene_dir).root, "preview", config)
+    write_run(run)
+    Trainer(every_fifth_view(builtin_scene_dir), config, run.path, progress=False).run()
+    assert json.loads((run.path / "log.json").read_text())["stopped"]["epoch"] == 3
+    assert is_finished(run.path)
+    assert plan_run(run.path, builtin_scene_dir, "preview", config, REUSE).state == FINISHED

@@ -35,6 +35,7 @@ from edgedog.errors import ConfigError, InputError
 from edgedog.files import read_json
 from edgedog.scenes import Scene
 from edgedog.train.config import DEFAULT_PRESET, TrainConfig, for_detector, from_dict
+from edgedog.train.convergence import trained_to_end
 from edgedog.train.layered import LayeredRun, is_layered, read_layered
 from edgedog.train.levels import Level, check_level_maps
 from edgedog.train.memory import check_memory
@@ -114,7 +115,8 @@ class RunResult:
 
 def is_finished(path: Path) -> bool:
     """Whether `path` holds a finished run: its config.json is ours and its log.json records
-    that configuration (with the settings its maps' detector fixed) trained to its last epoch.
+    that configuration (with the settings its maps' detector fixed) trained to its end: its last
+    epoch, or the epoch it stopped at once converged (`schedule.stop`).
     A log.json written mid-run (the speed bench writes one at each evaluation) is not."""
     path = Path(path)
     if not (path / LOG).is_file() or not (path / RUN_CONFIG).is_file():
@@ -123,7 +125,7 @@ def is_finished(path: Path) -> bool:
         config, log = read_run(path).config, read_json(path / LOG)
         detector = log["detector"]
         return (isinstance(log, dict) and isinstance(detector, str)
-                and len(log["history"]) == config.schedule.epochs
+                and trained_to_end(log, config.schedule.epochs)
                 and from_dict(log["config"]) == for_detector(config, detector))
     except (ConfigError, InputError, KeyError, TypeError, ValueError):
         return False
