@@ -116,5 +116,8 @@ def train_and_report(plan, quiet: bool) -> None:
         log = result.log
         print(f"trained {log['final_primitives']} primitives (from {log['initial_primitives']}) in "
               f"{log['train_seconds']} s")
+        if log.get("stopped"):
+            stop = log["stopped"]
+            print(f"stopped at epoch {stop['epoch'] + 1} of {stop['ceiling']} ({stop['reason']})")
         print_report(result.report)
     print(f"outputs in {plan.run.path}")
