@@ -100,3 +100,14 @@ def test_a_copy_is_never_written_over_an_existing_folder(abc_nef_scene_dir, tmp_
     (tmp_path / abc_nef_scene_dir.name).mkdir()
     with pytest.raises(InputError, match="already exists"):
         write_distorted_copy(abc_nef_scene_dir, tmp_path)
+
+
+def test_a_zero_distortion_without_maps_is_a_pinhole_copy_of_the_same_pixels(abc_nef_scene_dir, tmp_path):
+    """What `bench distorted-copy --computed-maps` trains as the original."""
+    copy = load_scene(write_distorted_copy(abc_nef_scene_dir, tmp_path, dict.fromkeys(DISTORTION, 0.0),
+                                           maps=False))
+    original = load_scene(abc_nef_scene_dir)
+    assert copy.format == "nerfstudio" and copy.detectors == []
+    assert copy.views[0].image_path.is_relative_to(tmp_path)  # a pinhole view: read in place
+    np.testing.assert_allclose(copy.camera(0).K, original.camera(0).K, atol=1e-9)
+    np.testing.assert_array_equal(read_raw(copy.views[0].image_path), read_raw(original.views[0].image_path))

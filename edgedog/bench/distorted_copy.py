@@ -65,12 +65,14 @@ def _write_image(path: Path, image: np.ndarray) -> None:
     atomic_write(path, lambda file: file.write(data.tobytes()))
 
 
-def write_distorted_copy(scene_path: Path, folder: Path, distortion: dict[str, float] = DISTORTION) -> Path:
+def write_distorted_copy(scene_path: Path, folder: Path, distortion: dict[str, float] = DISTORTION,
+                         maps: bool = True) -> Path:
     """Write the nerfstudio copy of the pinhole scene `scene_path` into `folder`/<its name>.
 
-    Every view's image (`images/`), mask (`masks/`) and edge maps (`edge_<detector>/`) are
-    resampled through `distortion` (nerfstudio's OPENCV k1 k2 p1 p2), bilinearly, zero outside
-    the original. Returns the copy's folder.
+    Every view's image (`images/`), mask (`masks/`) and, with `maps`, edge maps
+    (`edge_<detector>/`) are resampled through `distortion` (nerfstudio's OPENCV k1 k2 p1 p2),
+    bilinearly, zero outside the original; a zero distortion gives a pinhole copy of the same
+    pixels. Returns the copy's folder.
 
     Raises:
         InputError: the copy's folder exists, or the scene's views differ in intrinsics (the copy
@@ -85,8 +87,8 @@ def write_distorted_copy(scene_path: Path, folder: Path, distortion: dict[str, f
            != (first.width, first.height) for view in scene.views):
         raise InputError(scene.root, "its views differ in intrinsics; the distorted copy has one camera")
     coefficients = np.array([distortion[k] for k in ("k1", "k2", "p1", "p2")], dtype=np.float64)
-    maps = distortion_maps(first.K, coefficients, first.width, first.height)
-    frames = [_copy_view(scene, index, copy, maps) for index in range(len(scene))]
+    warp = distortion_maps(first.K, coefficients, first.width, first.height)
+    frames = [_copy_view(scene, index, copy, warp, maps) for index in range(len(scene))]
     K = first.K
     # nerfstudio puts the top-left pixel's centre at (0.5, 0.5); edgedog at (0, 0).
     meta = {"camera_model": "OPENCV", "fl_x": K[0, 0], "fl_y": K[1, 1], "cx": K[0, 2] + 0.5,
@@ -98,13 +100,14 @@ def write_distorted_copy(scene_path: Path, folder: Path, distortion: dict[str, f
     return copy
 
 
-def _copy_view(scene: Scene, index: int, copy: Path, maps: tuple[np.ndarray, np.ndarray]) -> dict:
-    """Write view `index`'s distorted files into `copy`; return its nerfstudio frame."""
+def _copy_view(scene: Scene, index: int, copy: Path, warp: tuple[np.ndarray, np.ndarray], maps: bool) -> dict:
+    """Write view `index`'s distorted files (`warp`: `distortion_maps`; its edge maps only with
+    `maps`) into `copy`; return its nerfstudio frame."""
     view = scene.views[index]
     size = (view.camera.width, view.camera.height)
 
     def distorted(source: Path, target: Path) -> str:
-        _write_image(target, cv2.remap(read_raw(source, size), *maps, cv2.INTER_LINEAR,
+        _write_image(target, cv2.remap(read_raw(source, size), *warp, cv2.INTER_LINEAR,
                                        borderMode=cv2.BORDER_CONSTANT, borderValue=0))
         return target.relative_to(copy).as_posix()
 
@@ -112,15 +115,21 @@ def _copy_view(scene: Scene, index: int, copy: Path, maps: tuple[np.ndarray, np.
              "transform_matrix": (view.camera.c2w() @ OPENGL_TO_OPENCV).tolist()}
     if view.mask_path is not None:
         frame["mask_path"] = distorted(view.mask_path, copy / "masks" / f"{view.name}.png")
-    for detector, path in view.edge_paths.items():
+    for detector, path in (view.edge_paths.items() if maps else ()):
         distorted(path, copy / f"edge_{detector}" / f"{view.name}.png")
     return frame
 
 
 def run_distorted_copy(scene_path: Path, out: Path, preset_name: str, config: TrainConfig,
-                       seeds: tuple[int, ...], copy_seeds: tuple[int, ...], progress: bool = True) -> dict:
+                       seeds: tuple[int, ...], copy_seeds: tuple[int, ...], computed_maps: bool = False,
+                       progress: bool = True) -> dict:
     """Write the copy into OUT/copy (or reuse it), train the original for `seeds` and the copy for
     `copy_seeds` (finished runs reused), and write OUT/distorted_copy.json and .md.
+
+    With `computed_maps` neither scene keeps the original's edge maps, and the detector computes
+    them from each scene's (undistorted) images, as from a user's capture: the copy is written
+    without maps, and the original is replaced by its pinhole copy without maps (OUT/pinhole).
+    The scene's own maps, distorted and undistorted, are resampled twice, which blurs them.
 
     Returns:
         the record: per run its scores (the extraction report's curve metrics) and training
@@ -132,7 +141,12 @@ def run_distorted_copy(scene_path: Path, out: Path, preset_name: str, config: Tr
     original = load_scene(scene_path).root
     copy = out / "copy" / original.name
     if not (copy / "transforms.json").is_file():
-        write_distorted_copy(original, out / "copy")
+        write_distorted_copy(original, out / "copy", maps=not computed_maps)
+    if computed_maps:
+        pinhole = out / "pinhole" / original.name
+        if not (pinhole / "transforms.json").is_file():
+            write_distorted_copy(original, out / "pinhole", dict.fromkeys(DISTORTION, 0.0), maps=False)
+        original = pinhole
     runs = []
     with RunLock.acquire(out):
         for kind, scene, kind_seeds in (("original", original, seeds), ("copy", copy, copy_seeds)):
@@ -147,6 +161,7 @@ def run_distorted_copy(scene_path: Path, out: Path, preset_name: str, config: Tr
                              "train_seconds": result.log["train_seconds"],
                              **{key: metrics[key] for key, _, _ in METRICS}})
     record = {"scene": str(original), "copy": str(copy), "preset": preset_name, "distortion": DISTORTION,
+              "computed_maps": computed_maps,
               "runs": runs, "summary": {kind: _summary([r for r in runs if r["scene"] == kind])
                                         for kind in ("original", "copy")}}
     atomic_write_json(out / FILES[0], record)
@@ -168,7 +183,8 @@ def markdown(record: dict) -> str:
     """One row per run, then the mean ± spread of each scene."""
     lens = ", ".join(f"{k} {v:g}" for k, v in record["distortion"].items())
     header = " | ".join(label for _, label, _ in METRICS)
-    lines = [f"The copy: nerfstudio OPENCV with {lens} ({record['preset']}).", "",
+    maps = "maps computed from each scene's images" if record["computed_maps"] else "the scene's own maps"
+    lines = [f"The copy: nerfstudio OPENCV with {lens} ({record['preset']}; {maps}).", "",
              f"| scene | seed | {header} | training s |", "|---" * (len(METRICS) + 3) + "|"]
     for run in record["runs"]:
         scores = " | ".join(cell(run[key], digits) for key, _, digits in METRICS)

@@ -207,6 +207,10 @@ def _add_distorted_copy(kinds) -> None:
                       help="training seeds of the original (default 0)")
     copy.add_argument("--copy-seeds", type=_seeds, default=(0,), metavar="N,...",
                       help="training seeds of the copy (default 0)")
+    copy.add_argument("--computed-maps", action="store_true",
+                      help="neither scene keeps the original's edge maps: the detector computes them from "
+                           "each scene's undistorted images, as from a user's capture (the original is then "
+                           "its pinhole nerfstudio copy, OUT/pinhole/NAME)")
     copy.add_argument("--quiet", action="store_true", help="no progress bars")
     copy.set_defaults(run=run_distorted_copy)
 
@@ -346,7 +350,7 @@ def run_distorted_copy(args: argparse.Namespace) -> None:
     _check_no_seed(args.overrides)
     config = with_overrides(preset(args.preset), args.overrides)
     record = run_distorted_copy(args.scene, args.out, args.preset, config, args.seeds, args.copy_seeds,
-                                progress=not args.quiet)
+                                args.computed_maps, progress=not args.quiet)
     print(markdown(record))
     print("wrote " + ", ".join(str(args.out / name) for name in FILES))
 
