@@ -135,8 +135,7 @@ def run_distorted_copy(scene_path: Path, out: Path, preset_name: str, config: Tr
         the record: per run its scores (the extraction report's curve metrics) and training
         seconds; per scene the mean and sample standard deviation over its seeds.
     """
-    from edgedog.train.lifecycle import REUSE, execute, plan_run
-    from edgedog.train.run_folder import RunLock
+    from edgedog.train.lifecycle import REUSE, execute, lock_folder, plan_run
 
     original = load_scene(scene_path).root
     copy = out / "copy" / original.name
@@ -148,7 +147,7 @@ def run_distorted_copy(scene_path: Path, out: Path, preset_name: str, config: Tr
             write_distorted_copy(original, out / "pinhole", dict.fromkeys(DISTORTION, 0.0), maps=False)
         original = pinhole
     runs = []
-    with RunLock.acquire(out):
+    with lock_folder(out):
         for kind, scene, kind_seeds in (("original", original, seeds), ("copy", copy, copy_seeds)):
             for seed in kind_seeds:
                 plan = plan_run(out / f"{kind}-seed{seed}", scene, preset_name,

@@ -177,7 +177,7 @@ def run_sfm_vs_cameras(scene_path: Path, out: Path, preset_name: str, config: Tr
         the record written to OUT/sfm_vs_cameras.json.
     """
     from edgedog.scenes.sfm import run_sfm
-    from edgedog.train.run_folder import RunLock
+    from edgedog.train.lifecycle import lock_folder
 
     known = load_scene(scene_path)
     sfm_path = out / SFM_SCENE
@@ -185,7 +185,7 @@ def run_sfm_vs_cameras(scene_path: Path, out: Path, preset_name: str, config: Tr
         run_sfm(photo_folder(known), sfm_path, max_image_size=max_image_size, matcher=matcher)
     sfm = load_scene(sfm_path)
     downscale = training_downscale(known, sfm)
-    with RunLock.acquire(out):
+    with lock_folder(out):
         _train(out / CAMERAS_RUN, scene_path, preset_name, with_values(config, {"maps.downscale": downscale}),
                progress)
         _train(out / SFM_RUN, sfm_path, preset_name, config, progress)
