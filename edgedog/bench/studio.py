@@ -35,6 +35,8 @@ DRAG_FPS = 30
 """Frames a scripted drag is spread over per second (at most the window's interactive rate)."""
 TYPED = "/tmp/edgedog/studio-bench/typing-01"
 """What is typed into the folder browser's path (35 keys, none with Shift on a US keymap)."""
+EPOCHS = 1000
+"""The run's epochs: a fast machine trains the studio preset's 100 before the last phase."""
 KEY_INTERVAL = 0.15
 """Seconds between two typed keys (a brisk typist)."""
 KEYSYMS = {"/": "slash", "-": "minus", ".": "period"}
@@ -206,11 +208,15 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seconds", type=float, default=8.0, help="length of each phase (default 8)")
     parser.add_argument("--size", default="1280x800", help="window size (default 1280x800)")
     parser.add_argument("--preset", default=None, help="the run's preset (default: the studio's)")
+    parser.add_argument("--epochs", type=int, default=EPOCHS,
+                        help=f"the run's epochs (default {EPOCHS}: it must still train when the last phase "
+                             "pauses it; the preset's schedule stretches to them)")
     parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                         help="training settings of the run (see edgedog studio --set)")
     parser.add_argument("--out", type=Path, default=None, help="write the figures as JSON here")
     args = parser.parse_args(argv)
-    options = [arg for override in args.overrides for arg in ("--set", override)]
+    options = ["--set", f"epochs={args.epochs}"]
+    options += [arg for override in args.overrides for arg in ("--set", override)]
     options += [] if args.preset is None else ["--preset", args.preset]
     figures = measure(args.scene, args.seconds, args.size, options)
     print(f"{'phase':<22} {'fps':>6} {'drawn/s':>8} {'steps/s':>8} {'headless':>8} {'share':>6} {'CPU %':>6}")
