@@ -31,7 +31,6 @@ from imgui_bundle import imgui
 
 from edgedog.curve_files import EdgeCurves
 from edgedog.errors import EdgeDogError
-from edgedog.train.layered import LayeredRun
 
 INSPECT_EVERY, INSPECT_SHARE = 1.0, 0.1
 """Seconds between the starts of two inspector renders: at least INSPECT_EVERY; and, for a newer
@@ -102,8 +101,8 @@ class Studio:
         scene = session.scene
         self.view.set_scene(scene.cameras, scene.bounds, session.ground_truth)
         self._reset_run()
-        if isinstance(session.resume, LayeredRun):
-            self.state.restart.layers = len(session.resume.levels)
+        if session.resume is not None:  # Restart keeps the run's number of layers
+            self.state.restart.layers = len(session.resume.layers())
         saved = session.saved
         if saved is not None and saved.extraction is not None:  # a finished run shows its curves
             self._show_extraction(saved.extraction)
