@@ -67,11 +67,13 @@ lint: $(VENV)/.deps-installed
 docs: $(VENV)/.ext-built
 	$(BIN)/python -m edgedog.tools.cli_reference --out docs/CLI.md
 
-# The studio pictures in docs/, each from a scripted session on a virtual display.
+# The studio pictures in docs/, each from a scripted session on a virtual display, at the window
+# size its script's name ends with (studio_1024x700.json), else 1600x1000.
 screenshots: setup
 	for script in docs/screenshots/*.json; do \
 		runs=$$(mktemp -d); \
-		xvfb-run -a -s "-screen 0 1600x1000x24" $(BIN)/edgedog studio --size 1600x1000 --runs $$runs \
+		size=$$(basename $$script .json | grep -o '[0-9]*x[0-9]*$$' || echo 1600x1000); \
+		xvfb-run -a -s "-screen 0 1600x1000x24" $(BIN)/edgedog studio --size $$size --runs $$runs \
 			--script $$script || exit 1; \
 		rm -rf $$runs; \
 	done
