@@ -9,7 +9,8 @@ import pytest
 import torch
 
 from edgedog.train.config import ScheduleSettings
-from edgedog.train.convergence import Convergence, fisher_change, trained_to_end
+from edgedog.train.convergence import Convergence, fisher_change
+from edgedog.train.lifecycle import trained_to_end
 from edgedog.train.trainer import Trainer
 from tests.helpers.tiny_runs import every_fifth_view, tiny_config
 

@@ -14,7 +14,6 @@ from typing import Any
 import numpy as np
 
 from edgedog.errors import InputError
-from edgedog.init.edge_vote import VoteSettings, edge_vote_points
 from edgedog.init.points import InitialPoints, nearest_neighbour_scales
 from edgedog.init.settings import InitMethod, InitSettings
 from edgedog.init.triangulate import checked_views, keep_on_edges, keypoints_per_view, triangulate_known_poses
@@ -50,6 +49,9 @@ def edge_vote_for_scene(scene: Scene, settings: InitSettings, detector: str | No
                         seed: int = 0) -> InitialPoints:
     """The cells of `scene_cube` where the views' `detector` maps agree (`edge_vote_points`),
     carved by the views' masks where the scene has them."""
+    # Imported here: scipy.stats takes half a second, which every command would pay at start-up.
+    from edgedog.init.edge_vote import VoteSettings, edge_vote_points
+
     center, side = scene_cube(scene, settings.side)
     maps = [scene.load_edge_map(i, detector) for i in range(len(scene))]
     masks = [scene.load_mask(i) for i in range(len(scene))]

@@ -106,10 +106,3 @@ class Convergence:
         centres, fisher = saved["centres"], saved["fisher"]
         return cls(None if centres is None else centres.to(device), [float(x) for x in saved["losses"]],
                    int(saved["settled"]), None if fisher is None else fisher.to(device))
-
-
-def trained_to_end(log: dict, epochs: int) -> bool:
-    """Whether a log.json's history ends its run: it reached the last of `epochs` epochs (a run
-    whose coarse stage ended early skips epochs), or the run stopped when converged."""
-    history = log["history"]
-    return bool(log.get("stopped")) or (bool(history) and history[-1]["epoch"] == epochs - 1)

@@ -35,7 +35,6 @@ from edgedog.errors import ConfigError, InputError
 from edgedog.files import read_json
 from edgedog.scenes import Scene
 from edgedog.train.config import DEFAULT_PRESET, TrainConfig, for_detector, from_dict
-from edgedog.train.convergence import trained_to_end
 from edgedog.train.layered import LayeredRun, is_layered, read_layered
 from edgedog.train.levels import Level, check_level_maps
 from edgedog.train.memory import check_memory
@@ -111,6 +110,13 @@ class RunResult:
     plan: RunPlan
     log: dict
     report: dict
+
+
+def trained_to_end(log: dict, epochs: int) -> bool:
+    """Whether a log.json's history ends its run: it reached the last of `epochs` epochs (a run
+    whose coarse stage ended early skips epochs), or the run stopped when converged."""
+    history = log["history"]
+    return bool(log.get("stopped")) or (bool(history) and history[-1]["epoch"] == epochs - 1)
 
 
 def is_finished(path: Path) -> bool:
