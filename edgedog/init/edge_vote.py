@@ -96,7 +96,7 @@ def disk(radius: int) -> np.ndarray:
 
 def projected_radius(camera: Camera, center: np.ndarray, half_diagonal: float) -> int:
     """Pixels that a cell's half diagonal spans in `camera` at the depth of `center` (at least 1)."""
-    depth = float((camera.R @ center + camera.t)[2])
+    depth = float(camera.project(center[None])[1][0])
     focal = float(max(camera.K[0, 0], camera.K[1, 1]))
     return max(1, int(np.ceil(focal * half_diagonal / max(depth, 1e-6))))
 
@@ -241,15 +241,13 @@ class Vote:
 
     Attributes:
         centres: (M, 3) the kept cells' centres.
-        score: (M,) their surprise.
-        sight: (M, 3) `sight` of each.
+        views: the views as the finest level read them (for `sight`).
         report: the cells kept at each level, the finest cell's size ("cell") and the coarsest
             grid's resolution.
     """
 
     centres: np.ndarray
-    score: np.ndarray
-    sight: np.ndarray
+    views: list[VoteView]
     report: dict
 
 
@@ -267,7 +265,6 @@ def vote_cells(cameras: list[Camera], edge_maps: list[np.ndarray], masks: list[n
     cones = view_cones(cameras, center, settings.cone)
     resolution = max(1, settings.finest >> (settings.levels - 1))
     points, cell = grid_centres(center, side, resolution), side / resolution
-    score = np.zeros(len(points))
     kept = []
     for level in range(settings.levels):
         last = level == settings.levels - 1
@@ -289,7 +286,7 @@ def vote_cells(cameras: list[Camera], edge_maps: list[np.ndarray], masks: list[n
             points = (points[:, None, :] + OFFSETS[None] * cell / 4).reshape(-1, 3)
             cell /= 2
     report = {"cells_kept": kept, "cell": cell, "coarsest": resolution}
-    return Vote(points, score, sight(points, views), report)
+    return Vote(points, views, report)
 
 
 def edge_vote_points(cameras: list[Camera], edge_maps: list[np.ndarray], masks: list[np.ndarray | None],
@@ -312,4 +309,5 @@ def edge_vote_points(cameras: list[Camera], edge_maps: list[np.ndarray], masks: 
     scales = nearest_neighbour_scales(positions, lo=scale_range[0], hi=scale_range[1])
     report = {**vote.report, "points": int(len(positions)), "cells_agreeing": int(len(vote.centres)),
               "center": [float(c) for c in center], "side": float(side), "seed": int(seed)}
-    return InitialPoints(positions, scales, "edge-vote", report, sight=vote.sight[chosen])
+    directions = sight(vote.centres[chosen], vote.views)
+    return InitialPoints(positions, scales, "edge-vote", report, sight=directions)
