@@ -22,6 +22,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from edgedog.batch.table import mean_and_spread
 from edgedog.bench.tables import cell, spread_cell
 from edgedog.errors import InputError
 from edgedog.files import atomic_write, atomic_write_bytes, atomic_write_json
@@ -172,9 +173,8 @@ def _summary(runs: list[dict]) -> dict:
     """Per metric: mean and sample standard deviation over `runs` (None for one run)."""
     result = {"seeds": [r["seed"] for r in runs]}
     for key, _, _ in METRICS:
-        values = np.array([r[key] for r in runs], dtype=np.float64)
-        result[key] = {"mean": float(values.mean()) if len(values) else None,
-                       "std": float(values.std(ddof=1)) if len(values) > 1 else None}
+        mean, spread = mean_and_spread([r[key] for r in runs])
+        result[key] = {"mean": mean, "std": spread}
     return result
 
 
