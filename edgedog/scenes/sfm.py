@@ -21,6 +21,12 @@ from edgedog.scenes.colmap import COLMAP_SUFFIXES, colmap_log_level
 
 MATCHERS = ("exhaustive", "sequential")
 MIN_REGISTERED = 3
+PARTIAL = ".{}.partial-"
+"""The name of the temporary folder beside the output (formatted with its name), before a random tail."""
+TO_TRY = ("try more photos with more overlap (every part of the object in 3 or more photos taken a "
+          "step apart), sharp photos of a textured object in even light, a larger --max-image-size, "
+          "or --matcher sequential for video frames")
+"""What a failed registration suggests."""
 
 
 def align_similarity(src: np.ndarray, dst: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
@@ -54,7 +60,14 @@ def _say(message: str) -> None:
     print(f"sfm: {message}", flush=True)
 
 
-def _photos(folder: Path) -> list[str]:
+def partial_folders(out: Path) -> list[Path]:
+    """The temporary folders `run_sfm` left beside `out` when its process was killed (a normal end
+    or an error removes its own); for a caller that killed it, while no other writes `out`."""
+    out = Path(out).expanduser().resolve()
+    return sorted(out.parent.glob(f"{PARTIAL.format(out.name)}*"))
+
+
+def photo_names(folder: Path) -> list[str]:
     """Names of the image files directly in `folder`, sorted; InputErrors for unusable folders."""
     if not folder.exists():
         raise InputError(folder, "photo folder not found")
@@ -113,12 +126,12 @@ def run_sfm(photos: Path, out: Path, max_image_size: int = 1600,
         raise ValueError(f"matcher must be one of {', '.join(MATCHERS)}, got {matcher!r}")
     photos = Path(photos).expanduser().resolve()
     out = Path(out).expanduser().resolve()
-    names = _photos(photos)
+    names = photo_names(photos)
     _check_out(out)
     sizes = _sizes(photos, names)
     create_folder(out.parent, named=out)
     try:
-        temporary = Path(tempfile.mkdtemp(prefix=f".{out.name}.partial-", dir=out.parent))
+        temporary = Path(tempfile.mkdtemp(prefix=PARTIAL.format(out.name), dir=out.parent))
     except OSError as exc:
         raise OutputError(out, f"cannot create the folder ({exc.strerror or exc})") from None
     started = time.perf_counter()
@@ -160,13 +173,13 @@ def run_sfm(photos: Path, out: Path, max_image_size: int = 1600,
             reconstructions = pycolmap.incremental_mapping(
                 database, photos, models, options=options, next_image_callback=next_image)
         if not reconstructions:
-            raise InputError(photos, f"structure from motion failed: no model from {len(names)} "
-                                     "photos (too little overlap or texture)")
+            raise InputError(photos, f"structure from motion registered 0 of {len(names)} photos "
+                                     f"(no model: too little overlap or texture); {TO_TRY}")
         key, best = max(reconstructions.items(), key=lambda item: item[1].num_reg_images())
         if best.num_reg_images() < MIN_REGISTERED:
             raise InputError(photos, f"structure from motion registered only "
                                      f"{best.num_reg_images()} of {len(names)} photos "
-                                     f"(needs {MIN_REGISTERED}; too little overlap or texture)")
+                                     f"(needs {MIN_REGISTERED}; too little overlap or texture); {TO_TRY}")
         _say(f"largest of {len(reconstructions)} model(s): {best.num_reg_images()} of "
              f"{len(names)} photos, {best.num_points3D()} points, mean reprojection error "
              f"{best.compute_mean_reprojection_error():.2f} px; undistorting")
