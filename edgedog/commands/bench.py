@@ -125,6 +125,7 @@ def add_parser(subparsers) -> None:
     _add_speed_error(kinds)
     _add_sfm_vs_cameras(kinds)
     _add_distorted_copy(kinds)
+    _add_edge_length(kinds)
 
 
 def _add_steps(kinds) -> None:
@@ -213,6 +214,26 @@ def _add_distorted_copy(kinds) -> None:
                            "its pinhole nerfstudio copy, OUT/pinhole/NAME)")
     copy.add_argument("--quiet", action="store_true", help="no progress bars")
     copy.set_defaults(run=run_distorted_copy)
+
+
+def _add_edge_length(kinds) -> None:
+    length = kinds.add_parser(
+        "edge-length", help="final primitives and training seconds against ground-truth edge length",
+        description="Read finished runs (run folders, or batch folders of them) grouped by variant, find "
+                    "each run's scene's ground-truth edge length (the total length of its sharp-edge "
+                    "curves), and write OUT/edge_length.json, .md and .png: per scene its primitives, "
+                    "training seconds and primitives per unit of edge length; per variant that ratio's "
+                    "median, its spread as shares of the median, the scenes within ±30 % of it, and "
+                    "lines of primitives and seconds against length. Trains nothing.")
+    length.add_argument("--runs", action="append", required=True, metavar="NAME=FOLDER",
+                        help="a variant's name and a run folder or a batch's --out (repeatable; a name "
+                             "given twice gathers both folders)")
+    length.add_argument("--out", type=Path, required=True,
+                        help="folder for the record, the table and the figure")
+    length.add_argument("--figure", type=Path, default=None, metavar="PNG",
+                        help="also write the figure (PNG) here, e.g. under docs/")
+    length.add_argument("--force", action="store_true", help="replace the --figure file if it exists")
+    length.set_defaults(run=run_edge_length)
 
 
 def _add_json_arguments(parser: argparse.ArgumentParser) -> None:
@@ -353,6 +374,39 @@ def run_distorted_copy(args: argparse.Namespace) -> None:
                                 args.computed_maps, progress=not args.quiet)
     print(markdown(record))
     print("wrote " + ", ".join(str(args.out / name) for name in FILES))
+
+
+def run_edge_length(args: argparse.Namespace) -> None:
+    from edgedog.bench.edge_length import (
+        EDGE_LENGTH_FILES,
+        markdown,
+        parse_variants,
+        plot_png,
+        read_runs,
+        record,
+    )
+    from edgedog.files import atomic_write_bytes, create_folder
+
+    variants = parse_variants(args.runs)
+    check_output_folder(args.out, EDGE_LENGTH_FILES)
+    if args.figure is not None:
+        check_new_file(args.figure, args.force)
+    points, notes = read_runs(variants)
+    if not points:
+        raise ConfigError("no finished run in the folders given: " + "; ".join(notes))
+    result = record(points, notes)
+    figure = plot_png(result)
+    create_folder(args.out)
+    atomic_write_json(args.out / EDGE_LENGTH_FILES[0], result)
+    atomic_write_bytes(args.out / EDGE_LENGTH_FILES[1], markdown(result).encode("utf-8"))
+    atomic_write_bytes(args.out / EDGE_LENGTH_FILES[2], figure)
+    written = [args.out / name for name in EDGE_LENGTH_FILES]
+    if args.figure is not None:
+        with output_file(args.figure, args.force):
+            atomic_write_bytes(args.figure, figure)
+        written.append(args.figure)
+    print(markdown(result))
+    print("wrote " + ", ".join(str(path) for path in written))
 
 
 def run_edges(args: argparse.Namespace) -> None:
