@@ -1,7 +1,7 @@
-"""The controls panel (run, live and restart settings, display, curves and export) and the
-status line. Widgets only edit the UI state or make requests; the studio acts on them. Every
-widget's tooltip says what it does and when it applies: live (at the next training step) or at
-the next (re)start.
+"""The controls panel (the scene, structure from motion from photos, run, live and restart
+settings, display, curves and export) and the status line. Widgets only edit the UI state or
+make requests; the studio acts on them. Every widget's tooltip says what it does and when it
+applies: live (at the next training step), at the next (re)start, or at the next SfM.
 """
 
 from __future__ import annotations
@@ -11,16 +11,20 @@ import time
 
 from edgedog.app import STUDIO_PRESET, layout, widgets
 from edgedog.app.layers import layer_members, list_new_layers
+from edgedog.app.sfm_job import CANCELLED, DONE
 from edgedog.app.state import COLOR_MODES, EXPORT_FORMATS, KERNELS, WEIGHTING_FORMULAS, WEIGHTINGS
 from edgedog.app.worker import FAILED, FINISHED, PAUSED, STOPPED
 from imgui_bundle import imgui
 
+from edgedog.scenes.sfm import MATCHERS
 from edgedog.train.config import MAX_LAYERS, PRESETS, presets_help
 
 ERROR_COLOR = imgui.ImVec4(1.0, 0.4, 0.35, 1.0)
 PROGRESS_COLOR = imgui.ImVec4(0.22, 0.45, 0.75, 1.0)
 """The progress bar's fill: dark enough for its white text."""
 KEEP_RATIO_RANGE = (0.1, 1.0)
+IMAGE_SIZE_RANGE = (200, 10000)
+"""The max image sizes of structure from motion the panel takes, in pixels."""
 AT_RESTART = "Applies at the next Start or Restart (a running trainer cannot change it)."
 LIVE = "Live: applied at the next training step, and recorded in the run's log.json."
 
@@ -30,14 +34,61 @@ def _scene(studio) -> None:
     imgui.text(f"Scene  {session.scene_path.name}")
     imgui.set_item_tooltip(str(session.scene_path))
     imgui.same_line()
-    if widgets.button("Open...", "open a scene folder (a new run) or a run folder (to resume or "
-                      "view it) in a folder browser (Ctrl+O), or drop one on the window", small=True):
+    if widgets.button("Open...", "open a scene folder (a new run), a run folder (to resume or view "
+                      "it) or a folder of photos (to recover their cameras first) in a folder browser "
+                      "(Ctrl+O), or drop one on the window", small=True):
         state.request("open")
     if session.run_dir is None:
         imgui.text("Run  (not started)")
     else:
         imgui.text(f"Run  {session.run_dir.name}")
         imgui.set_item_tooltip(str(session.run_dir))
+
+
+def _sfm(studio) -> None:
+    """Structure from motion under way (its progress and Cancel), or how the last one ended."""
+    job, outcome = studio.sfm, studio.sfm_outcome
+    if job is None or (outcome is not None and outcome.status == CANCELLED):
+        return
+    imgui.separator_text("Cameras from photos (SfM)")
+    imgui.text(f"Photos  {job.photos.name}")
+    imgui.set_item_tooltip(f"{job.photos} -> {job.out}")
+    progress = job.progress
+    if studio.recovering:
+        imgui.push_style_color(imgui.Col_.plot_histogram, PROGRESS_COLOR)
+        imgui.progress_bar(progress.fraction, imgui.ImVec2(-1, 0), f"{progress.label}  {job.elapsed:.0f} s")
+        imgui.pop_style_color()
+        widgets.note("sfm progress", f"edgedog sfm: {progress.message}")
+        if widgets.button("Cancel##sfm", "stop the structure from motion now; nothing of it is kept"):
+            studio.state.request("cancel_sfm")
+    elif outcome is not None and outcome.status == DONE:
+        points = "" if progress.points is None else f", {progress.points} points"
+        imgui.text_disabled(f"{progress.registered} of {progress.photos} registered{points}, "
+                            f"{outcome.seconds:.0f} s")
+    elif outcome is not None:
+        imgui.text_colored(ERROR_COLOR, "structure from motion failed:")
+        imgui.text_wrapped(outcome.error or "")
+        imgui.text_disabled("the matcher and max image size: under 'Photos to cameras (SfM)'")
+        if imgui.tree_node("output##sfm"):
+            imgui.text_wrapped("\n".join(outcome.tail))
+            imgui.tree_pop()
+
+
+def _sfm_settings(state) -> None:
+    """How the next folder of photos goes through structure from motion."""
+    if not imgui.collapsing_header("Photos to cameras (SfM)"):
+        return
+    sfm = state.sfm
+    sfm.matcher = widgets.combo("matcher", sfm.matcher, MATCHERS,
+                                "exhaustive: every pair of photos (up to a few hundred); sequential: "
+                                "ordered video frames (each with its neighbours). For the next SfM.")
+    low, high = IMAGE_SIZE_RANGE
+    sfm.max_image_size = min(max(widgets.input_int(
+        "max image size", sfm.max_image_size,
+        "Longest side in pixels for the features and the undistorted images the scene keeps; "
+        "larger finds more in detailed photos, and takes longer. For the next SfM.", 100, 400), low), high)
+    sfm.train_after = widgets.checkbox("train once the cameras are shown", sfm.train_after,
+                                       "start training on the recovered scene as soon as it opens")
 
 
 def _start_label(studio) -> str:
@@ -157,6 +208,10 @@ def _display(studio) -> None:
                                      "t: surround ratio) on viridis; white: no colouring")
     if display.color_by != "white" and studio.view.color_range is not None:
         imgui.text_disabled("viridis: {:.3g} .. {:.3g}".format(*studio.view.color_range))
+    if studio.session.scene.sfm_points is not None:
+        display.sfm_points = widgets.checkbox("SfM points", display.sfm_points,
+                                              "show the scene's sparse structure-from-motion points "
+                                              "in their colours")
     imgui.text("Layers")
     members = {} if latest is None else layer_members(latest.snapshot)
     if latest is not None:
@@ -199,11 +254,13 @@ def _curves(studio) -> None:
 def draw(studio, area: layout.Area) -> None:
     if layout.begin("Controls", area):
         _scene(studio)
+        _sfm(studio)
         _training(studio)
         _live(studio.state)
         _curves(studio)  # before the longer sections: Export in sight on a 700 px high window
         _display(studio)
         _restart(studio)
+        _sfm_settings(studio.state)
     imgui.end()
 
 

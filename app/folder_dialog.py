@@ -1,8 +1,9 @@
 """Open...: an in-window folder browser, so that opening needs no external program (the system
 dialogs of portable-file-dialogs need zenity or kdialog on Linux, and say nothing without them).
 
-It lists the sub-folders of one folder, each marked when it is a scene or a run; a double
-click (or Enter on a typed path) goes into a folder, "Open" opens the one shown.
+It lists the sub-folders of one folder, each marked when it is a scene, a run or a folder of
+photos (which Open offers to take through structure from motion); a double click (or Enter on a
+typed path) goes into a folder, "Open" opens the one shown.
 """
 
 from __future__ import annotations
@@ -11,18 +12,21 @@ import os
 from pathlib import Path
 
 from edgedog.app import widgets
+from edgedog.app.photos import has_photos
 from imgui_bundle import imgui
 
 from edgedog.scenes import FORMATS
 from edgedog.train.lifecycle import record_kind
 
-TITLE = "Open a scene or run folder"
+TITLE = "Open a scene, run or photo folder"
+PHOTOS = "photos"
+"""The kind of a folder that holds images and is neither a scene nor a run."""
 MAX_ENTRIES = 2000
 """Sub-folders listed at most (a huge folder is cut short, with a note)."""
 
 
 def folder_kind(path: Path) -> str:
-    """'run', 'layered run', a scene format's name, or '' for any other folder."""
+    """'run', 'layered run', a scene format's name, PHOTOS, or '' for any other folder."""
     kind = record_kind(path)
     if kind:
         return kind
@@ -32,7 +36,7 @@ def folder_kind(path: Path) -> str:
                 return f"{name} scene"
         except OSError:  # an unreadable folder is listed as a plain one
             return ""
-    return ""
+    return PHOTOS if has_photos(path) else ""
 
 
 def sub_folders(path: Path) -> tuple[list[str], str]:

@@ -75,13 +75,27 @@ class Display:
     color_by: str = "white"
     layers: dict[str, bool] = field(default_factory=lambda: {"L0": True})
     """Multi-granularity layers by name -> shown."""
+    sfm_points: bool = True
+    """The scene's structure-from-motion points (a COLMAP scene's, e.g. from `edgedog sfm`)."""
+
+
+@dataclass
+class SfmSettings:
+    """How a folder of photos is taken through structure from motion (`edgedog sfm`'s options),
+    and whether training starts once its cameras are shown."""
+
+    matcher: str = "exhaustive"
+    max_image_size: int = 1600
+    train_after: bool = True
 
 
 @dataclass(frozen=True)
 class Request:
-    """An action asked for: "open" (path; none: the folder browser), "start", "pause", "resume",
-    "restart", "extract", "export" (formats, or one format; default the checked ones),
-    "snap" (to the selected view), "reset_view", "help" (show or hide), "screenshot" (path),
+    """An action asked for: "open" (path; none: the folder browser; a folder of photos: asks
+    whether to "sfm"), "sfm" (photos, out: recover their cameras, then open that scene),
+    "cancel_sfm", "start", "pause", "resume", "restart", "extract", "export" (formats, or one
+    format; default the checked ones), "snap" (to the selected view), "reset_view", "help" (show
+    or hide), "screenshot" (path),
     "quit" (the user's: asked first while a run is under way, always with ask=True), "close"
     (the window closes at once). "open" with a path, "restart" and "quit" that would stop a run
     wait for the user's yes, which makes them again with confirmed=True."""
@@ -104,6 +118,7 @@ class UIState:
     auto_extract_seconds: float = 20.0
     export_formats: dict[str, bool] = field(default_factory=lambda: dict.fromkeys(EXPORT_FORMATS, True))
     """The formats one click on Export writes (all from the same snapshot)."""
+    sfm: SfmSettings = field(default_factory=SfmSettings)
     show_help: bool = False
     inspector: ImageZoom = field(default_factory=ImageZoom)
     """The inspector enlarged to the whole panel, its zoom and the pixel readout."""

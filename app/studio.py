@@ -1,6 +1,10 @@
 """The studio, one frame at a time: acts on the UI's requests, keeps the run's controls in step
 with the UI, refreshes the 3D view, inspectors and curves from the latest snapshot, and draws
 the panels. Window-independent: `window.py` owns GLFW, imgui's backends and the frame loop.
+
+A folder of photos opened is offered structure from motion (`edgedog sfm` in a child process,
+sfm_job.py); once its cameras are recovered, their scene opens like any other, its sparse points
+shown, and trains.
 """
 
 from __future__ import annotations
@@ -15,22 +19,25 @@ from edgedog.app.colors import COLORMAPS, colorbar
 from edgedog.app.confirm import Confirm
 from edgedog.app.display import TITLE
 from edgedog.app.extraction import Extraction, extract_snapshot
-from edgedog.app.folder_dialog import FolderDialog
+from edgedog.app.folder_dialog import PHOTOS, FolderDialog, folder_kind
 from edgedog.app.inspection import NAMES as INSPECTOR_NAMES
 from edgedog.app.inspection import Inspector, inspect_view
 from edgedog.app.jobs import BackgroundJob, Done
 from edgedog.app.layers import finest, layer_members, selection, visible_subset
+from edgedog.app.photos import offer, sfm_scene_folder
+from edgedog.app.points_view import PointsView
 from edgedog.app.rates import MovingRate
 from edgedog.app.saved_run import read_extraction
 from edgedog.app.session import Session
+from edgedog.app.sfm_job import CANCELLED, DONE, SfmJob, SfmOutcome
 from edgedog.app.state import EXPORT_FORMATS, LiveSettings, Request, UIState
 from edgedog.app.textures import ImageTexture
-from edgedog.app.view3d import View3D
 from edgedog.app.worker import FINISHED, TRAINING, Published, TrainingWorker
 from imgui_bundle import imgui
 
 from edgedog.curve_files import EdgeCurves
 from edgedog.errors import EdgeDogError
+from edgedog.scenes.sfm import photo_names
 
 INSPECT_EVERY, INSPECT_SHARE = 1.0, 0.1
 """Seconds between the starts of two inspector renders: at least INSPECT_EVERY; and, for a newer
@@ -60,6 +67,7 @@ class Studio:
 
     Attributes:
         session: the scene and its runs; state: the UI state; view: the 3D view.
+        sfm: the structure from motion under way (or last run); sfm_outcome: how the last ended.
         inspectors: the latest inspector images; extraction: the latest curves.
         fscores: (elapsed, {mm: F}) per scored extraction of the current run's whole model.
         exports: every file exported in this window; stop_seconds: how long closing took.
@@ -67,7 +75,9 @@ class Studio:
 
     def __init__(self, ctx: moderngl.Context, session: Session, runs_root: Path | None = None):
         self.ctx, self.runs_root = ctx, runs_root
-        self.view = View3D(ctx)
+        self.view = PointsView(ctx)
+        self.sfm: SfmJob | None = None
+        self.sfm_outcome: SfmOutcome | None = None
         self.inspector_job, self.extract_job = BackgroundJob("inspect"), BackgroundJob("extract")
         self.textures = [ImageTexture(ctx) for _ in INSPECTOR_NAMES]
         self.colorbars = {name: ImageTexture(ctx, moderngl.LINEAR) for name in COLORMAPS}
@@ -100,6 +110,7 @@ class Studio:
         self.state = UIState.for_config(session.preset, session.config)
         scene = session.scene
         self.view.set_scene(scene.cameras, scene.bounds, session.ground_truth)
+        self.view.set_points(scene.sfm_points, scene.sfm_colors)
         self._reset_run()
         if session.resume is not None:  # Restart keeps the run's number of layers
             self.state.restart.layers = len(session.resume.layers())
@@ -150,9 +161,21 @@ class Studio:
 
     @property
     def running(self) -> bool:
-        """Whether a run is under way (setting up, training, paused or extracting its final curves):
-        what quitting, Restart or opening another folder would stop."""
-        return self.worker is not None and self.worker.alive
+        """Whether a run is under way (setting up, training, paused or extracting its final curves)
+        or structure from motion: what quitting, Restart or opening another folder would stop."""
+        return self.worker is not None and self.worker.alive or self.recovering
+
+    @property
+    def recovering(self) -> bool:
+        """Whether structure from motion is under way."""
+        return self.sfm is not None and self.sfm.busy
+
+    @property
+    def stops(self) -> str | None:
+        """What quitting or opening another folder would stop now, in words (None: nothing)."""
+        if self.recovering:
+            return "the camera recovery (nothing of it is kept)"
+        return "the run under way (it keeps its last checkpoint)" if self.running else None
 
     @property
     def latest(self) -> Published | None:
@@ -185,12 +208,14 @@ class Studio:
         shortcuts.handle_keys(self)
         window_requests = [r for r in self.state.take_requests() if not self._handle(r)]
         self.session.reap()
+        self._poll_sfm()
         self._sync_live()
         self._poll_jobs()
         latest = self.latest
         info = None if self.worker is None else self.worker.info
         self.view.sync(latest, None if info is None else info.raster, self.state.display, self.state.view,
                        self.shown_curves)
+        self.view.sync_points(self.state.display.sfm_points)
         self._refresh_inspectors(latest)
         self._refresh_curves(latest)
         self._draw()
@@ -205,6 +230,12 @@ class Studio:
                 self._quit(request)
             elif request.name == "open":
                 self._request_open(request)
+            elif request.name == "sfm":
+                self._start_sfm(Path(request.args["photos"]), request.args.get("out"))
+            elif request.name == "cancel_sfm":
+                self._cancel_sfm()
+            elif request.name in ("start", "restart") and self.recovering:
+                self.state.status = f"{request.name}: cameras are being recovered; wait for them or Cancel"
             elif request.name == "restart" and self._go_ahead(
                     request, "Stop this run and train a new run folder? It keeps its last checkpoint.",
                     "Restart"):
@@ -241,7 +272,8 @@ class Studio:
 
     def _quit(self, request: Request) -> None:
         """q, Esc with nothing open (`ask`: it always asks) or the window's close button."""
-        question = ("Stop training and quit? The run keeps its last checkpoint." if self.running
+        question = ("Cancel the camera recovery and quit?" if self.recovering else
+                    "Stop training and quit? The run keeps its last checkpoint." if self.running
                     else "Quit EdgeDoG Studio?")
         if self._go_ahead(request, question, "Quit", ask=request.args.get("ask", False)):
             self.state.request("close")
@@ -253,13 +285,87 @@ class Studio:
         if path is None:
             self.dialog = FolderDialog(self.session.opened)
             return
-        if not self._go_ahead(request, f"Stop this run and open {path}? It keeps its last checkpoint.",
-                              "Open"):
+        if folder_kind(Path(path).expanduser()) == PHOTOS:
+            self._offer_sfm(Path(path).expanduser().resolve())
             return
-        session = Session.open(path, self.runs_root, self.state.restart.preset, self.session.overrides)
+        question = (f"Cancel the camera recovery and open {path}?" if self.recovering else
+                    f"Stop this run and open {path}? It keeps its last checkpoint.")
+        if not self._go_ahead(request, question, "Open"):
+            return
+        self._open_scene(self._session(path))
+
+    def _session(self, path: str | Path) -> Session:
+        """The session of a scene or run folder, with this one's preset and overrides."""
+        return Session.open(path, self.runs_root, self.state.restart.preset, self.session.overrides)
+
+    def _open_scene(self, session: Session) -> None:
+        """Show `session` instead of the one open (whose run stops, keeping its last checkpoint)."""
+        self._cancel_sfm(wait=True)
         self.session.stop()
         self._open(session)
         self.state.status = f"opened {session.opened}"
+
+    # --- photos: structure from motion
+    @property
+    def sfm_root(self) -> Path:
+        """Where the scenes recovered from photos go: beside the runs."""
+        return self.runs_root or self.session.runs_root
+
+    def _offer_sfm(self, photos: Path) -> None:
+        """Ask whether to recover the cameras of a folder of photos (an InputError when it has too
+        few, or when the studio would have to write inside it)."""
+        count = len(photo_names(photos))
+        out = sfm_scene_folder(self.sfm_root, photos)
+        request = Request("sfm", {"photos": str(photos), "out": str(out)})
+        self.confirm = Confirm(offer(photos, count, out, self.stops), "Recover cameras (SfM)", request)
+
+    def _start_sfm(self, photos: Path, out: str | None) -> None:
+        """Stop what runs and start `edgedog sfm` on `photos` into `out` (default: a new folder
+        beside the runs)."""
+        out_path = Path(out) if out else sfm_scene_folder(self.sfm_root, photos)
+        self._cancel_sfm(wait=True)
+        self.session.stop()
+        settings = self.state.sfm
+        self.sfm = SfmJob(photos, out_path, settings.matcher, settings.max_image_size)
+        self.sfm_outcome = None
+        self.sfm.start()
+        self.state.status = f"recovering the cameras of {photos} into {out_path}"
+
+    def _cancel_sfm(self, wait: bool = False) -> None:
+        """Stop the structure from motion under way (what it wrote is removed); with `wait`, until
+        it has ended and been taken."""
+        if self.recovering:
+            self.sfm.cancel(None if wait else 0.0)
+            self.state.status = "cancelling the camera recovery"
+            if wait:
+                self._poll_sfm()
+
+    def _poll_sfm(self) -> None:
+        """Take a finished structure from motion: open its scene (and train), or say why not."""
+        outcome = None if self.sfm is None else self.sfm.poll()
+        if outcome is None:
+            return
+        self.sfm_outcome = outcome
+        if outcome.status == DONE:
+            self._take_sfm(outcome)
+        elif outcome.status == CANCELLED:
+            self.state.status = "camera recovery cancelled: nothing was written"
+        else:
+            self.state.status = f"structure from motion failed: {outcome.error}"
+
+    def _take_sfm(self, outcome: SfmOutcome) -> None:
+        """Open the scene recovered, its cameras and points shown, then train if asked to."""
+        try:
+            session = self._session(outcome.out)
+        except EdgeDogError as error:
+            self.state.status = f"error: {error}"
+            return
+        self._open_scene(session)
+        progress = outcome.progress
+        self.state.status = (f"cameras of {progress.registered} of {progress.photos} photos and "
+                             f"{progress.points} points in {outcome.seconds:.0f} s: {outcome.out}")
+        if self.state.sfm.train_after:
+            self._start(fresh=False)
 
     def _request_export(self, args: dict) -> None:
         """Queue one export of the latest snapshot in the formats asked for (default: the checked
@@ -443,7 +549,15 @@ class Studio:
     def probe(self) -> dict:
         """Flat facts for the scripted driver and its report."""
         worker = self.worker
+        sfm = None if self.sfm is None else self.sfm.progress
+        outcome = self.sfm_outcome
         facts = {"phase": None if worker is None else worker.phase, "runs": self.session.runs,
+                 "sfm": "running" if self.recovering else None if outcome is None else outcome.status,
+                 "sfm_stage": None if sfm is None else sfm.stage_name,
+                 "sfm_fraction": None if sfm is None else sfm.fraction,
+                 "sfm_error": None if outcome is None else outcome.error,
+                 "sfm_out": None if self.sfm is None else str(self.sfm.out),
+                 "sfm_points": self.view.points_shown, "scene": str(self.session.scene_path),
                  "steps": 0 if worker is None else worker.steps,
                  "steps_per_second": 0.0 if worker is None else worker.steps_per_second,
                  "steps_per_second_now": self.step_rate.rate, "fps_now": self.frame_rate.rate,
@@ -480,6 +594,7 @@ class Studio:
         """Stop the run (within a second once it trains: it keeps its last checkpoint), wait for
         what cannot be interrupted (a trainer's set-up, an extraction), and free GL objects."""
         started = time.perf_counter()
+        self._cancel_sfm(wait=True)
         if not self.session.stop(1.0):
             print("edgedog: waiting for the run's set-up to finish (it cannot be interrupted)...",
                   file=sys.stderr, flush=True)
