@@ -131,6 +131,7 @@ def test_real_keys_and_clicks_open_photos_start_sfm_and_cancel_it(box, window_ma
     assert leftovers(runs) == []  # no scene, no partial folder
 
 
+@pytest.mark.slow
 def test_photos_that_cannot_register_say_how_many_did_in_the_window(box, xvfb_display, tmp_path):
     photos = write_noise_photos(tmp_path / "noise")
     runs, shot = tmp_path / "runs", tmp_path / "sfm-failed.png"
@@ -147,3 +148,19 @@ def test_photos_that_cannot_register_say_how_many_did_in_the_window(box, xvfb_di
     assert probe["status"] == f"structure from motion failed: {error}"
     assert probe["scene"] == str(box) and leftovers(runs) == []
     assert shot.is_file()
+
+
+@pytest.mark.shared_data
+@pytest.mark.slow
+def test_quitting_during_sfm_asks_then_ends_it_at_once_and_leaves_nothing(box, xvfb_display, tmp_path):
+    photos = write_dtu_photos(tmp_path / "photos", size=(1600, 1200))
+    runs = tmp_path / "runs"
+    actions = [{"request": "sfm", "photos": str(photos)},
+               {"expect": {"sfm": "running", "sfm_stage": "features"}, "timeout": 60},
+               {"key": "q"},
+               {"expect": {"confirm": "Cancel the camera recovery and quit?"}, "timeout": 20}, {"wait": 1},
+               {"key": "enter"}]
+    result, outcome = run_script(actions, [box, "--runs", runs, *FAST], xvfb_display, tmp_path)
+    probe = assert_ok(result, outcome)
+    assert probe["sfm"] == "cancelled" and outcome["stop_seconds"] < 2.0
+    assert leftovers(runs) == []
