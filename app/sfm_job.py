@@ -26,6 +26,7 @@ from pathlib import Path
 
 from edgedog.app.sfm_progress import SfmProgress, advance
 
+from edgedog.errors import EdgeDogError
 from edgedog.scenes.sfm import partial_folders
 
 DONE, FAILED, CANCELLED = "done", "failed", "cancelled"
@@ -91,11 +92,14 @@ class SfmJob:
         self._out_existed = False
 
     def start(self) -> None:
-        """Start the child (an OSError when it cannot be) and the thread reading it."""
+        """Start the child (an EdgeDogError when it cannot be) and the thread reading it."""
         self.started = time.monotonic()
         self._out_existed = self.out.exists() or self.out.is_symlink()
-        self._process = subprocess.Popen(self.command, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
-                                         stderr=subprocess.STDOUT, text=True, errors="replace")
+        try:
+            self._process = subprocess.Popen(self.command, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                                             stderr=subprocess.STDOUT, text=True, errors="replace")
+        except OSError as error:
+            raise EdgeDogError(f"cannot start edgedog sfm: {error.strerror or error}") from None
         self._thread.start()
 
     @property

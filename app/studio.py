@@ -163,7 +163,7 @@ class Studio:
     def running(self) -> bool:
         """Whether a run is under way (setting up, training, paused or extracting its final curves)
         or structure from motion: what quitting, Restart or opening another folder would stop."""
-        return self.worker is not None and self.worker.alive or self.recovering
+        return (self.worker is not None and self.worker.alive) or self.recovering
 
     @property
     def recovering(self) -> bool:
@@ -302,6 +302,8 @@ class Studio:
         """Show `session` instead of the one open (whose run stops, keeping its last checkpoint)."""
         self._cancel_sfm(wait=True)
         self.session.stop()
+        if self.sfm is not None and session.scene_path != self.sfm.out.resolve():
+            self.sfm = self.sfm_outcome = None  # the panel tells of photos no longer shown
         self._open(session)
         self.state.status = f"opened {session.opened}"
 
@@ -326,9 +328,9 @@ class Studio:
         self._cancel_sfm(wait=True)
         self.session.stop()
         settings = self.state.sfm
-        self.sfm = SfmJob(photos, out_path, settings.matcher, settings.max_image_size)
-        self.sfm_outcome = None
-        self.sfm.start()
+        job = SfmJob(photos, out_path, settings.matcher, settings.max_image_size)
+        job.start()
+        self.sfm, self.sfm_outcome = job, None
         self.state.status = f"recovering the cameras of {photos} into {out_path}"
 
     def _cancel_sfm(self, wait: bool = False) -> None:

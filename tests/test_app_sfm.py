@@ -19,7 +19,7 @@ from edgedog.app.sfm_progress import STAGES, SfmProgress, advance
 from edgedog.renderer.gl.context import GLUnavailableError, offscreen_context
 
 from edgedog.builtin.scene import write_box_scene
-from edgedog.errors import InputError
+from edgedog.errors import EdgeDogError, InputError
 from edgedog.scenes import load_scene
 from tests.helpers.paths import shared_path
 
@@ -163,6 +163,14 @@ def test_a_failing_child_gives_its_one_line_error(tmp_path):
     assert outcome.progress.stage_name == "matching" and not (tmp_path / "scene").exists()
 
 
+def test_a_child_that_cannot_start_is_one_error(tmp_path):
+    job = SfmJob(tmp_path / "photos", tmp_path / "scene")
+    job.command = [str(tmp_path / "no-such-python")]
+    with pytest.raises(EdgeDogError, match="cannot start edgedog sfm") as info:
+        job.start()
+    assert "\n" not in str(info.value) and not job.busy and job.poll() is None
+
+
 # --- the job, running `edgedog sfm` ----------------------------------------------------------
 
 def test_photos_that_cannot_register_say_how_many_did_and_what_to_try(tmp_path):
@@ -253,3 +261,4 @@ def test_the_sparse_points_are_drawn_in_their_colours_and_hidden_on_demand(tmp_p
     finally:
         view.release()
         ctx.release()
+
