@@ -21,6 +21,7 @@ from edgedog.renderer.gl.context import GLUnavailableError, offscreen_context
 from edgedog.builtin.scene import write_box_scene
 from edgedog.errors import EdgeDogError, InputError
 from edgedog.scenes import load_scene
+from edgedog.scenes.sfm import REGISTRATION_LINES, registration_reporter
 from tests.helpers.paths import shared_path
 
 DTU_VIEWS = range(10, 20)
@@ -86,6 +87,23 @@ def test_progress_follows_every_stage_of_the_command():
     assert progress.message == "wrote /out in 300 s"
     # Other output (pycolmap's, a traceback) changes nothing.
     assert advance(progress, "W1127 some pycolmap warning\n") == progress
+
+
+@pytest.mark.parametrize("photos, every", [(3, 1), (9, 1), (39, 1), (40, 2), (49, 2), (400, 20)])
+def test_the_mapping_says_each_registration_on_few_photos_and_about_20_lines_on_many(photos, every, capsys):
+    report = registration_reporter(photos)
+    for _ in range(photos):
+        report()
+    lines = capsys.readouterr().out.splitlines()
+    assert lines == [f"sfm:   {count} images registered" for count in range(every, photos + 1, every)]
+    assert len(lines) < 2 * REGISTRATION_LINES
+    # Under 10 photos the bar moves with each one (it stayed at "0 of N" when every 10th was said).
+    if photos < 10:
+        progress = advance(SfmProgress(), LINES[0].replace("49", str(photos)) + "\n")
+        for line in [LINES[2], *lines]:
+            progress = advance(progress, line + "\n")
+            assert progress.label == f"3/4 mapping: {progress.registered} of {photos} registered"
+        assert progress.registered == photos and progress.fraction == 0.75
 
 
 def test_the_error_line_is_the_commands_one_line():

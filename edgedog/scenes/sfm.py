@@ -10,6 +10,7 @@ from __future__ import annotations
 import shutil
 import tempfile
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import cv2
@@ -101,6 +102,25 @@ def _check_out(out: Path) -> None:
         raise InputError(out, "already exists; choose a new output folder or remove this one")
 
 
+REGISTRATION_LINES = 20
+"""Lines the mapping prints at most (about) on the photos it registers: one per photo for up to
+2 * REGISTRATION_LINES photos, then one every `len(photos) // REGISTRATION_LINES`."""
+
+
+def registration_reporter(photos: int) -> Callable[[], None]:
+    """The mapping's callback for each photo registered: says how many are, every
+    max(1, photos // REGISTRATION_LINES) photos, so that a progress bar moves on a few photos
+    and the output stays short on many."""
+    every, registered = max(1, photos // REGISTRATION_LINES), [0]
+
+    def next_image() -> None:
+        registered[0] += 1
+        if registered[0] % every == 0:
+            _say(f"  {registered[0]} images registered")
+
+    return next_image
+
+
 def run_sfm(photos: Path, out: Path, max_image_size: int = 1600,
             matcher: str = "exhaustive") -> Path:
     """Recover cameras for a folder of photos and write a COLMAP scene folder.
@@ -162,16 +182,9 @@ def run_sfm(photos: Path, out: Path, max_image_size: int = 1600,
         _say(f"{pairs} image pairs with geometrically verified matches; incremental mapping")
         options = pycolmap.IncrementalPipelineOptions()
         options.random_seed = 0
-        registered = [0]
-
-        def next_image() -> None:
-            registered[0] += 1
-            if registered[0] % 10 == 0:
-                _say(f"  {registered[0]} images registered")
-
         with colmap_log_level(3):  # a failed mapping is reported below as one line
-            reconstructions = pycolmap.incremental_mapping(
-                database, photos, models, options=options, next_image_callback=next_image)
+            reconstructions = pycolmap.incremental_mapping(database, photos, models, options=options,
+                                                           next_image_callback=registration_reporter(len(names)))
         if not reconstructions:
             raise InputError(photos, f"structure from motion registered 0 of {len(names)} photos "
                                      f"(no model: too little overlap or texture); {TO_TRY}")
