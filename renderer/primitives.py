@@ -85,9 +85,12 @@ def dog_shape(k_raw: torch.Tensor, config: RasterConfig) -> tuple[torch.Tensor, 
     if config.kernel == "gaussian":
         ones = torch.ones_like(k_raw[:, 0])
         return ones, torch.zeros_like(ones)
+    # unbind: one backward node that stacks both columns' gradients, where two column selects
+    # would each fill a zero (N, 2) tensor and add it.
+    inner, outer = k_raw.unbind(1)
     if config.k_activation == "sigmoid":
-        return 2 * torch.sigmoid(k_raw[:, 0]), torch.sigmoid(k_raw[:, 1])
-    return torch.exp(k_raw[:, 0]), torch.exp(-torch.exp(k_raw[:, 1]))
+        return 2 * torch.sigmoid(inner), torch.sigmoid(outer)
+    return torch.exp(inner), torch.exp(-torch.exp(outer))
 
 
 @dataclass

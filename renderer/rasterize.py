@@ -8,6 +8,7 @@ RasterConfig.backend. docs/METHOD.md has the maths.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import NamedTuple
@@ -41,7 +42,8 @@ class RenderOutput:
         depth: (H, W) expected depth sum_i z_i alpha_i T_i (not normalised by alpha).
         means2d: (N, 2) projected centres in pixels; its .grad holds dL/dmean2d after
             backward (for densification), when the primitives require gradients.
-        visible: (N,) bool, the primitive reaches at least one pixel of this view.
+        extents: (N, 2) half-widths of each support box in pixels; valid: (N,) bool, not
+            culled by the projection (both as the projection returns them).
         absgrad: after backward, `.value` is the (N, 2) sum over pixels of |per-pixel
             dL/dmean2d| (None before backward; with the torch backend, also when the means
             need no gradient).
@@ -51,8 +53,16 @@ class RenderOutput:
     alpha: torch.Tensor
     depth: torch.Tensor
     means2d: torch.Tensor
-    visible: torch.Tensor
+    extents: torch.Tensor
+    valid: torch.Tensor
     absgrad: AbsGradSink
+
+    @functools.cached_property
+    def visible(self) -> torch.Tensor:
+        """(N,) bool, the primitive reaches at least one pixel of this view (computed when first
+        asked for: training never asks, and on a GPU each of its dozen operators is a launch)."""
+        height, width = self.alpha.shape
+        return ref.support_boxes(self.means2d.detach(), self.extents, self.valid, width, height)[2]
 
 
 def _background(config: RasterConfig, channels: int, dtype: torch.dtype, device: torch.device):
@@ -134,8 +144,7 @@ def _render_one(
     means2d, extents, valid, (image, alpha, depth) = render(prims, act, camera, config, absgrad)
     if means2d.requires_grad:
         means2d.retain_grad()
-    visible = ref.support_boxes(means2d.detach(), extents, valid, camera.width, camera.height)[2]
-    return RenderOutput(image, alpha, depth, means2d, visible, absgrad)
+    return RenderOutput(image, alpha, depth, means2d, extents, valid, absgrad)
 
 
 def rasterize(

@@ -56,7 +56,7 @@ def test_duplication_copies_the_primitives_above_the_threshold():
         if name != "means":
             assert torch.equal(tensor.detach()[N:], old[sources])
         # Adam follows: the originals keep their moments, the copies start from zero.
-        moments = optimizers.adams[name].state[tensor]["exp_avg"]
+        moments = optimizers.moments(name)["exp_avg"]
         assert moments[:N].abs().min() > 0 and not moments[N:].any()
     # The copies' centres move by N(0, 0.05^2) from their source's.
     moved = (model.means.detach()[N:] - before.means[sources]).abs()
@@ -184,7 +184,7 @@ def test_spacing_splits_a_primitive_longer_than_the_spacing():
                                torch.tensor([[0.05 / 3, 0.002, 0.002]] * 3))
     # The short and the round ones stay as they were.
     assert torch.equal(model.means.detach()[:2], torch.tensor([[0.0, 0.0, 0.0], [-0.5, 0.0, 0.0]]))
-    moments = optimizers.adams["means"].state[model.means]["exp_avg"]
+    moments = optimizers.moments("means")["exp_avg"]
     assert moments[:2].abs().min() > 0 and not moments[2:].any()  # the pieces start afresh
 
 

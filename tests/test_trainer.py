@@ -14,8 +14,11 @@ from edgedog.scenes import load_scene
 from edgedog.train import losses
 from edgedog.train.config import TrainConfig, for_detector, preset, with_epochs, with_overrides, with_settings
 from edgedog.train.model import GROUPS, EdgeModel
+from edgedog.train.optim import Optimizers, learning_rates
 from edgedog.train.resolution import ViewSet
 from edgedog.train.trainer import Trainer, _finite_grads
+from tests.helpers.backends import KERNEL_DEVICES, each_device
+from tests.helpers.paths import shared_path
 
 
 def small_config(**changes) -> TrainConfig:
@@ -51,6 +54,30 @@ def test_a_killed_run_resumes_exactly(box, tmp_path):
     assert [e["after"] for e in resumed.events] == [e["after"] for e in whole.events]
 
 
+@pytest.mark.skipif("cuda" not in KERNEL_DEVICES, reason="no CUDA kernels here (a CUDA build and a GPU)")
+@pytest.mark.shared_data
+def test_a_run_on_cuda_checkpoints_and_resumes(tmp_path):
+    """On a GPU (whose atomics make runs differ in the last bits, so not `resumes_exactly`): the
+    checkpoint holds the device's draws and the fused Adam's moments, and the run goes on from
+    them. On 00000006 (its own maps), not the built-in box: a GPU machine need not have the CAD
+    kernel that makes the box."""
+    scene = load_scene(shared_path("abc_nef/00000006"), downscale=4)
+    scene.views = scene.views[::4]
+    config = small_config(device="cuda")
+    part = Trainer(scene, config, tmp_path / "part", progress=False)
+    while part.epoch < 3:
+        part.step()
+    resumed = Trainer(scene, config, tmp_path / "part", progress=False)
+    assert resumed.step_index == 3 * len(scene) and resumed.model.device.type == "cuda"
+    assert resumed.pixel_generator.device.type == "cuda"
+    assert torch.equal(resumed.pixel_generator.get_state(), part.pixel_generator.get_state())
+    assert resumed.optimizers.adam.defaults["fused"]
+    torch.testing.assert_close(resumed.optimizers.moments("means")["exp_avg"],
+                               part.optimizers.moments("means")["exp_avg"], rtol=0, atol=0)
+    resumed.run()
+    assert resumed.done and all(bool(torch.isfinite(t).all()) for t in resumed.model.tensors().values())
+
+
 def test_density_control_events_and_outputs(box, tmp_path):
     trainer = Trainer(box, small_config(), tmp_path / "run", progress=False)
     trainer.run()
@@ -69,10 +96,11 @@ def test_density_control_events_and_outputs(box, tmp_path):
     # opacity (off by default) is never trained.
     assert not trainer.model.opacity_dirs.any()
     for name, tensor in trainer.model.tensors().items():
+        assert trainer.optimizers.groups[name]["params"] == [tensor]
         if name == "opacity_dirs":
-            assert not trainer.optimizers.adams[name].state
+            assert not trainer.optimizers.moments(name)
             continue
-        state = trainer.optimizers.adams[name].state[tensor]
+        state = trainer.optimizers.moments(name)
         assert state["exp_avg"].shape == tensor.shape
         assert torch.isfinite(tensor).all()
     for output in ("primitives.ply", "points.ply", "log.json", "checkpoint.pt"):
@@ -170,6 +198,53 @@ def test_the_sampled_loss_takes_the_edges_and_as_many_distinct_background_pixels
     listed = torch.nonzero(~flat).squeeze(1)
     pick = torch.randperm(len(listed), generator=torch.Generator().manual_seed(7))[:count]
     assert torch.equal(background, listed[pick])
+
+
+def test_one_adam_over_the_groups_steps_each_as_its_own_adam_would():
+    """Optimizers' one Adam (AdamW's decoupled decay on b) against an Adam per group, as the
+    runs before it were trained: the same parameters to the bit after steps where some groups
+    have no gradient (skipped, as the orientation losses' steps leave all but the geometry)."""
+    g = torch.Generator().manual_seed(0)
+    n = 50
+    model = EdgeModel(*(torch.randn(n, *shape, generator=g) for shape in ((3,), (3,), (4,), (), (2,))),
+                      opacity_dirs=torch.randn(n, 3, generator=g)).requires_grad_()
+    twin = EdgeModel(**{name: t.detach().clone() for name, t in model.tensors().items()}).requires_grad_()
+    config = with_settings(TrainConfig(), {"model.view_opacity": True})
+    ours = Optimizers(model, config)
+    ours.set_epoch(200)
+    rates = learning_rates(config, 200)
+    decay = config.loss.view_opacity_decay
+    alone = {name: (torch.optim.AdamW([t], lr=rates[name], eps=1e-15, weight_decay=decay)
+                    if name == "opacity_dirs" else torch.optim.Adam([t], lr=rates[name], eps=1e-15))
+             for name, t in twin.tensors().items()}
+    assert all(rate > 0 for rate in rates.values())
+    for step in range(6):
+        stepped = GROUPS if step % 2 == 0 else ("means", "log_scales", "quats")
+        for m in (model, twin):
+            sum((torch.sin(getattr(m, name) * (step + 1))).sum() for name in stepped).backward()
+        ours.step()
+        ours.zero_grad()
+        for name in stepped:
+            alone[name].step()
+        for adam in alone.values():
+            adam.zero_grad(set_to_none=True)
+    for name in GROUPS:
+        assert torch.equal(getattr(model, name), getattr(twin, name)), name
+
+
+@each_device
+def test_the_sampled_loss_draws_on_its_generators_device(device):
+    """A generator of the run's device draws there (on a GPU: no host permutation, no copy):
+    the edges, then as many distinct background pixels; the same seed, the same draw."""
+    mask = (torch.rand(60, 50, generator=torch.Generator().manual_seed(2)) > 0.8).to(device)
+    edges, flat = losses.edge_pixels(mask), mask.reshape(-1)
+    draws = [losses.edge_and_background_sample(edges, mask.numel(),
+                                               torch.Generator(device).manual_seed(5)) for _ in range(2)]
+    count = int(flat.sum())
+    assert draws[0].device.type == device and torch.equal(draws[0], draws[1])
+    background = draws[0][count:]
+    assert len(background) == count and len(set(background.tolist())) == count
+    assert not flat[background].any()
 
 
 def test_the_sampled_loss_is_the_mean_of_the_edge_and_background_losses_in_expectation():

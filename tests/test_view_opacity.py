@@ -169,7 +169,7 @@ def test_b_follows_duplication_with_its_own_adam_moments():
     sources = torch.nonzero(torch.arange(12) / 11 > 0.5).squeeze(1).repeat(2)
     assert len(model) == 12 + len(sources)
     torch.testing.assert_close(model.opacity_dirs.detach(), torch.cat([moved, moved[sources]]))
-    moments = optimizers.adams[VIEW_OPACITY.raw].state[model.opacity_dirs]["exp_avg"]
+    moments = optimizers.moments(VIEW_OPACITY.raw)["exp_avg"]
     assert moments[:12].abs().min() > 0 and not moments[12:].any()
 
 
@@ -312,7 +312,7 @@ def test_a_layer_above_renders_the_lower_layers_with_their_b(box, tmp_path):
     config = tiny_config(view_opacity=True, view_opacity_from_epoch=0, layer=1, lower_lr_scale=0.5)
     second = Trainer(box, config, tmp_path / "L1", progress=False, lower=lower)
     second.run()
-    assert second.lower_optimizers.adams[VIEW_OPACITY.raw].param_groups[0]["lr"] == 0.5 * 0.03
+    assert second.lower_optimizers.groups[VIEW_OPACITY.raw]["lr"] == 0.5 * 0.03
     assert not torch.equal(second.lower.model.opacity_dirs, before)  # fine-tuned
     stack = read_stack(tmp_path / "L1")
     torch.testing.assert_close(stack.model.opacity_dirs, torch.cat([second.lower.model.opacity_dirs,

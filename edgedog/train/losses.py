@@ -48,7 +48,9 @@ def projection_loss(render: torch.Tensor, target: torch.Tensor, weight: torch.Te
     error = (render - target).abs()
     if weight is not None:
         error = error * weight
-    return error.mean() if sample is None else error.reshape(-1)[sample].mean()
+    # index_select, not error[sample]: its backward adds into the sampled pixels, where indexing's
+    # accumulates through a sort of the indices on a GPU (the pixels are distinct: same sums).
+    return error.mean() if sample is None else error.reshape(-1).index_select(0, sample).mean()
 
 
 def edge_pixels(edge_mask: torch.Tensor) -> torch.Tensor:
@@ -64,13 +66,15 @@ def edge_and_background_sample(edges: torch.Tensor, pixels: int, generator: torc
     Args:
         edges: (E,) sorted flat indices of the edge pixels (`edge_pixels`).
         pixels: H x W of the image.
+        generator: draws the background pixels, on its own device (a CUDA generator draws
+            them on the GPU: a permutation of every background pixel on the host is milliseconds).
     Returns:
-        (2E,) int64 (fewer when the background has fewer than E pixels): the edges, then the
-        background pixels of a uniform random draw without replacement.
+        (2E,) int64 on the edges' device (fewer when the background has fewer than E pixels):
+        the edges, then the background pixels of a uniform random draw without replacement.
     """
     edges = edges.long()
-    # Drawn on the host by the run's generator (the same draws on every device), then moved.
-    ranks = torch.randperm(pixels - len(edges), generator=generator)[: len(edges)].to(edges.device)
+    ranks = torch.randperm(pixels - len(edges), generator=generator,
+                           device=generator.device)[: len(edges)].to(edges.device)
     # The background pixel of rank k is k plus the edges before it; edge i has edges[i] - i
     # background pixels before it. (No background index list: 5 MB and two nonzero passes per view.)
     before = edges - torch.arange(len(edges), device=edges.device)

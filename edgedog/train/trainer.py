@@ -48,8 +48,6 @@ from edgedog.train.targets import (
 )
 from edgedog.train.view_opacity import camera_centres, cap_, largest_logits, seen_from
 
-GEOMETRY_GROUPS = ("means", "log_scales", "quats")  # what the orientation losses move
-
 
 @dataclass
 class Controls:
@@ -176,9 +174,11 @@ class Trainer:
     the model and kept fixed (or fine-tuned at `layers.lower_lr_scale`). A resumed run takes them from
     its checkpoint.
 
-    Every random draw comes from `generator` (seeded with `config.run.seed`, saved in checkpoints)
-    or from numpy generators seeded from `config.run.seed` where they are used: no process-global
-    random state is read or set, so a run gives the same result whatever ran before it.
+    Every random draw comes from `generator` (seeded with `config.run.seed`, saved in checkpoints),
+    from `pixel_generator` (the sampled loss's, on the run's device: `generator` itself on the
+    CPU; seeded and saved likewise) or from numpy generators seeded from `config.run.seed` where
+    they are used: no process-global random state is read or set, so a run gives the same result
+    whatever ran before it.
     """
 
     def __init__(self, scene: Scene, config: TrainConfig, out: Path, progress: bool = True,
@@ -209,6 +209,10 @@ class Trainer:
         self.strategy = DensityStrategy(config, self.raster)
         self.controls = Controls(config.strategy.keep_ratio, config.loss.weighting)
         self.generator = torch.Generator().manual_seed(config.run.seed)
+        # The sampled loss's draws, on the run's device: the run's own generator on the CPU (its
+        # runs are unchanged), a generator of the GPU there (no host permutation, no copy).
+        self.pixel_generator = (self.generator if self.device.type == "cpu"
+                                else torch.Generator(self.device).manual_seed(config.run.seed))
         self.step_index = 0
         self.history: list[dict] = []
         self.events: list[dict] = []
@@ -322,9 +326,11 @@ class Trainer:
             # A view without edge pixels has nothing to sample around: its loss stays the full one.
             if (epoch >= c.sampled_from_epoch and self.step_index % c.sampled_every == 0
                     and len(views.edge_pixels[view])):
-                sample = losses.edge_and_background_sample(views.edge_pixels[view],
-                                                           views.edge_masks[view].numel(), self.generator)
-            render, target = out.image[..., 0], views.targets[view]
+                sample = losses.edge_and_background_sample(
+                    views.edge_pixels[view], views.edge_masks[view].numel(), self.pixel_generator)
+            # The edge model renders one channel: a view of it (selecting it would make the
+            # backward pass fill a zero image and copy into it).
+            render, target = out.image.squeeze(-1), views.targets[view]
             if self.config.maps.edge_profile == "profile":
                 render = blur_to_profile(render, self.config.maps.profile_sigma / views.factor)
             if self.learned_shift is not None:
@@ -383,7 +389,7 @@ class Trainer:
             if value.item() > 0:
                 (factor * running / value.item() * value).backward()
                 self.bad_gradients += _finite_grads(self.model)
-                self.optimizers.step(GEOMETRY_GROUPS)
+                self.optimizers.step()  # the terms have gradients in the geometry groups only
                 self.optimizers.zero_grad()
 
     def _end_epoch(self, epoch: int, keep_ratio: float) -> None:
@@ -466,6 +472,8 @@ class Trainer:
             "optimizers": self.optimizers.state_dict(), "absgrad": self.state.absgrad.cpu(),
             "pruned_positions": self.state.pruned_positions, "fisher": self.state.fisher,
             "generator": self.generator.get_state(),
+            "pixel_generator": (None if self.pixel_generator is self.generator
+                                else self.pixel_generator.get_state().cpu()),
             "history": self.history, "events": self.events, "seconds": self.seconds,
             "bad_gradients": self.bad_gradients, "init_report": self.init_report,
             "initial_count": self.initial_count, "detector": self.detector,
@@ -505,6 +513,10 @@ class Trainer:
         if self.learned_shift is not None:
             self.learned_shift.load_state_dict(saved["learned_shift"])
         self.generator.set_state(saved["generator"])
+        pixel_state = saved.get("pixel_generator")
+        # Resumed on another kind of device, the draws go on from the seed.
+        if self.pixel_generator is not self.generator and pixel_state is not None:
+            self.pixel_generator.set_state(pixel_state)
         self.step_index = int(saved["step_index"])
         self.history, self.events = saved["history"], saved["events"]
         self.seconds, self.bad_gradients = float(saved["seconds"]), int(saved["bad_gradients"])
