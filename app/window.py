@@ -104,9 +104,10 @@ def _ask_to_quit(window, studio: Studio) -> None:
 
 
 def run_studio(session: Session, runs_root: Path | None = None, script: Path | None = None,
-               size: tuple[int, int] = (1600, 1000)) -> int:
+               size: tuple[int, int] = (1600, 1000), opening: Path | None = None) -> int:
     """Open the window on `session` and run until it is closed; returns the exit status (1 when
-    a script failed). Closing stops training within a second."""
+    a script failed). Closing stops training within a second. `opening`: a folder then opened as
+    Open... opens it (`edgedog studio PHOTOS`: structure from motion is offered)."""
     driver = ScriptDriver.load(script) if script is not None else None
     init_glfw()
     try:
@@ -121,6 +122,8 @@ def run_studio(session: Session, runs_root: Path | None = None, script: Path | N
         imgui.backends.opengl3_init(f"#version {GL_VERSION}")
         studio = Studio(ctx, session, runs_root)
         studio.typed_drawn = watch.drawn
+        if opening is not None:
+            studio.state.request("open", path=str(opening))
         glfw.set_drop_callback(window, lambda _window, paths: studio.state.request("open", path=paths[0]))
         glfw.set_window_close_callback(window, lambda _window: _ask_to_quit(window, studio))
         try:

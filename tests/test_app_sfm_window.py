@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 from edgedog.app.controls_panel import PROGRESS_COLOR
 
-from edgedog.builtin.scene import write_box_scene
+from edgedog.builtin.scene import DEFAULT_DETECTOR, DEFAULT_SHAPE, write_box_scene
 from tests import test_studio_window as window_tests
 from tests.test_app_sfm import DTU_VIEWS, write_dtu_photos, write_noise_photos
 from tests.test_studio_window import assert_ok, run_script
@@ -163,4 +163,23 @@ def test_quitting_during_sfm_asks_then_ends_it_at_once_and_leaves_nothing(box, x
     result, outcome = run_script(actions, [box, "--runs", runs, *FAST], xvfb_display, tmp_path)
     probe = assert_ok(result, outcome)
     assert probe["sfm"] == "cancelled" and outcome["stop_seconds"] < 2.0
+    assert leftovers(runs) == []
+
+
+def test_photos_on_the_command_line_are_offered_sfm_as_open_offers_them(xvfb_display, tmp_path):
+    # `edgedog studio PHOTOS` failed with "not a scene": it now shows the built-in scene (here a
+    # small box in its place in the cache) and asks, as Open... on the photos does; Enter starts.
+    cache, runs = tmp_path / "cache", tmp_path / "runs"
+    builtin = write_box_scene(cache / "scenes" / f"{DEFAULT_SHAPE}-{DEFAULT_DETECTOR}", views=8, size=96)
+    photos = write_noise_photos(tmp_path / "noise")
+    actions = [{"expect": {"confirm": ["!=", None]}, "timeout": 30}, {"mark": "offered"},
+               {"key": "enter"}, {"expect": {"sfm": "running"}, "timeout": 30},
+               {"request": "cancel_sfm"}, {"expect": {"sfm": "cancelled"}, "timeout": 30},
+               {"request": "close"}]
+    result, outcome = run_script(actions, [photos, "--cache", cache, "--runs", runs, *FAST], xvfb_display,
+                                 tmp_path)
+    probe = assert_ok(result, outcome)
+    offered = outcome["marks"]["offered"]
+    assert offered["confirm"].startswith(f"{photos} holds 3 photos and no cameras")
+    assert offered["scene"] == probe["scene"] == str(builtin) and probe["phase"] is None
     assert leftovers(runs) == []

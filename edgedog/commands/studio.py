@@ -1,5 +1,6 @@
-"""`edgedog studio [SCENE | RUN]`: the desktop studio, training live with a 3D view, inspectors
-and plots."""
+"""`edgedog studio [SCENE | RUN | PHOTOS]`: the desktop studio, training live with a 3D view,
+inspectors and plots. A folder of photos opens as Open... opens it: the built-in scene is shown
+while the studio offers to recover the photos' cameras (structure from motion)."""
 
 from __future__ import annotations
 
@@ -30,10 +31,13 @@ def add_parser(subparsers) -> None:
         description="Open a scene (training into a new run folder) or a run folder (resuming it) in "
                     "a window: live DoG splats, curves, cameras and ground truth in 3D; the selected "
                     "view's image, edge map, render, depth, Up and w(Up); loss, primitive and "
-                    "F-score plots; run controls and curve export. Needs a display; without one "
-                    "use `edgedog train`.")
-    parser.add_argument("path", nargs="?", type=Path, metavar="SCENE | RUN",
-                        help="scene folder, or run folder to resume (default: the built-in scene)")
+                    "F-score plots; run controls and curve export. A folder of plain photos is "
+                    "offered structure from motion (edgedog sfm) first, as Open... offers it. "
+                    "Needs a display; without one use `edgedog train`.")
+    parser.add_argument("path", nargs="?", type=Path, metavar="SCENE | RUN | PHOTOS",
+                        help="scene folder, run folder to resume, or folder of photos without cameras (offers "
+                             "to recover them by structure from motion, then trains; the built-in scene shows "
+                             "meanwhile) (default: the built-in scene)")
     parser.add_argument("--preset", choices=PRESETS, default=STUDIO_PRESET,
                         help=f"settings of new runs (default {STUDIO_PRESET}). {presets_help()}")
     parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
@@ -57,10 +61,15 @@ def run(args: argparse.Namespace) -> int:
     init_glfw()  # no display: fail before loading (or generating) anything
     if args.cache is not None:  # where edgedog.files.default_cache puts computed edge maps too
         os.environ["EDGEDOG_CACHE"] = str(args.cache)
+    from edgedog.app.folder_dialog import PHOTOS, folder_kind
     from edgedog.app.session import Session
     from edgedog.app.window import run_studio
     from edgedog.builtin.scene import builtin_scene_path
 
-    path = args.path if args.path is not None else builtin_scene_path(args.cache, progress=True)
+    path, photos = args.path, None
+    if path is not None and folder_kind(path.expanduser()) == PHOTOS:  # as Open... on it: SfM is offered
+        path, photos = None, path.expanduser()
+    if path is None:
+        path = builtin_scene_path(args.cache, progress=True)
     session = Session.open(path, args.runs, args.preset, args.overrides)
-    return run_studio(session, args.runs, args.script, args.size)
+    return run_studio(session, args.runs, args.script, args.size, opening=photos)
