@@ -8,9 +8,11 @@ immutable snapshots that the window reads.
 - studio.py: one frame: requests, live controls, 3D view, inspectors, curves, panels.
 - state.py: what the panels edit; script.py: a scripted driver feeding the same state.
 - session.py, worker.py: the scene, its run folders, and the training thread.
-- view3d.py, textures.py: GL drawing; inspection.py, extraction.py, jobs.py: work done off the
-  UI thread; colors.py, layers.py, rates.py: colour maps, the layer list and the readouts'
-  moving rates.
+- photos.py, sfm_job.py, sfm_progress.py: a folder of photos opened: the offer of structure from
+  motion, `edgedog sfm` in a child process that Cancel ends at once, and its progress by stage.
+- view3d.py, points_view.py, textures.py: GL drawing (points_view.py: a scene's sparse SfM
+  points); inspection.py, extraction.py, jobs.py: work done off the UI thread; colors.py,
+  layers.py, rates.py: colour maps, the layer list and the readouts' moving rates.
 - layout.py and *_panel.py: the panels.
 """
 

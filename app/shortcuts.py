@@ -10,7 +10,7 @@ SHORTCUTS = (
     ("space", "pause or resume training (start when nothing runs)"),
     ("r", "reset the 3D view"),
     ("1 - 9", "select training view 1 - 9 and look through its camera"),
-    ("Ctrl+O", "open a scene or run folder"),
+    ("Ctrl+O", "open a scene or run folder, or a folder of photos (offers to recover their cameras)"),
     ("Ctrl+E", "export the curves of the latest snapshot in the checked formats"),
     ("F1 or h", "show or hide this help"),
     ("Esc", "close the topmost window (the folder browser, then this help); with none open, "
