@@ -35,9 +35,9 @@ def add_parser(subparsers) -> None:
                     "offered structure from motion (edgedog sfm) first, as Open... offers it. "
                     "Needs a display; without one use `edgedog train`.")
     parser.add_argument("path", nargs="?", type=Path, metavar="SCENE | RUN | PHOTOS",
-                        help="scene folder, run folder to resume, or folder of photos without cameras (offers "
-                             "to recover them by structure from motion, then trains; the built-in scene shows "
-                             "meanwhile) (default: the built-in scene)")
+                        help="scene folder, run folder to resume, or folder of photos without cameras "
+                             "(offers to recover them by structure from motion, then trains; the built-in "
+                             "scene shows meanwhile) (default: the built-in scene)")
     parser.add_argument("--preset", choices=PRESETS, default=STUDIO_PRESET,
                         help=f"settings of new runs (default {STUDIO_PRESET}). {presets_help()}")
     parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
