@@ -537,9 +537,10 @@ class Studio:
             self.confirm = None
 
     @property
-    def pictures(self) -> int:
-        """Counts the re-drawn images the panels show (the 3D view's and the inspectors')."""
-        return self.view.renders + self.inspector_uploads
+    def pictures(self) -> dict[str, int]:
+        """Counts the re-drawn images the panels show, by the window that shows them (the 3D
+        view's and the inspectors')."""
+        return {"3D view": self.view.renders, "Inspectors": self.inspector_uploads}
 
     @property
     def title(self) -> str:

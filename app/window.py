@@ -16,7 +16,7 @@ import moderngl
 import numpy as np
 from edgedog.app import layout
 from edgedog.app.display import InputWatch, init_glfw, open_window, scale_for_dpi
-from edgedog.app.redraw import Redraw
+from edgedog.app.redraw import Rect, Redraw, clip_rects, clip_to, pixel_box
 from edgedog.app.script import ScriptDriver
 from edgedog.app.session import Session
 from edgedog.app.studio import Studio
@@ -43,9 +43,22 @@ def save_screenshot(ctx: moderngl.Context, path: Path, width: int, height: int) 
     return path
 
 
+SOFTWARE_RENDERERS = ("llvmpipe", "softpipe", "swrast")
+"""GL renderers that draw on the CPU: their back buffer is a plain image that keeps the frame
+after a swap, so that a frame only draws the region that changed (redraw.py)."""
+
+
+def software_gl(ctx: moderngl.Context) -> bool:
+    """Whether the context draws on the CPU (Mesa's llvmpipe, softpipe or swrast)."""
+    renderer = str(ctx.info.get("GL_RENDERER", "")).lower()
+    return any(name in renderer for name in SOFTWARE_RENDERERS)
+
+
 def _loop(window, ctx: moderngl.Context, studio: Studio, driver: ScriptDriver | None, watch: InputWatch
           ) -> None:
-    title, redraw = None, Redraw()
+    title, redraw = None, Redraw(partial=software_gl(ctx))
+    # The window was exposed (uncovered, restored): its content is drawn again, whole.
+    glfw.set_window_refresh_callback(window, lambda _window: redraw.invalidate())
     while not glfw.window_should_close(window):
         started = time.perf_counter()
         glfw.poll_events()
@@ -58,8 +71,9 @@ def _loop(window, ctx: moderngl.Context, studio: Studio, driver: ScriptDriver | 
         imgui.new_frame()
         requests = studio.frame()
         imgui.render()
-        if redraw.needed(imgui.get_draw_data(), studio.pictures) or requests:
-            _draw(window, ctx, requests)
+        changed = redraw.needed(imgui.get_draw_data(), studio.pictures)
+        if changed or requests:  # a screenshot of an unchanged frame: the back buffer holds it, if kept
+            _draw(window, ctx, requests, redraw.regions if changed or redraw.partial else None, changed)
             studio.frames_drawn += 1
             watch.frame_drawn()
         if studio.title != title:
@@ -69,14 +83,24 @@ def _loop(window, ctx: moderngl.Context, studio: Studio, driver: ScriptDriver | 
         _wait_for_next_frame(watch, TRAINING_FPS if studio.training else ACTIVE_FPS, idle, started)
 
 
-def _draw(window, ctx: moderngl.Context, requests: list) -> None:
-    """Draw imgui's frame, act on the requests only the window can (screenshots of this frame,
-    closing), and show the frame."""
+def _draw(window, ctx: moderngl.Context, requests: list, regions: list[Rect] | None = None,
+          changed: bool = True) -> None:
+    """Draw imgui's frame (only `regions` of it, in display coordinates, when given: the back
+    buffer holds the rest from the frame shown; nothing when not `changed`), act on the requests
+    only the window can (screenshots of this frame, closing), and show the frame."""
     width, height = glfw.get_framebuffer_size(window)
     ctx.screen.viewport = (0, 0, width, height)
     ctx.screen.use()
-    ctx.screen.clear(*layout.background())
-    imgui.backends.opengl3_render_draw_data(imgui.get_draw_data())
+    draw_data = imgui.get_draw_data()
+    if regions is None:
+        ctx.screen.clear(*layout.background())
+        imgui.backends.opengl3_render_draw_data(draw_data)
+    elif changed:
+        original = clip_rects(draw_data)
+        for region in regions:
+            clip_to(draw_data, region, original)
+            ctx.screen.clear(*layout.background(), viewport=pixel_box(region, draw_data, height))
+            imgui.backends.opengl3_render_draw_data(draw_data)
     for request in requests:
         if request.name == "screenshot":
             save_screenshot(ctx, Path(request.args["path"]), width, height)

@@ -149,3 +149,84 @@ def test_a_frame_is_drawn_only_when_it_differs_from_the_one_shown():
     assert redraw.needed(frame, pictures=1)  # the 3D view or an inspector was re-drawn
     texture.status = imgui.ImTextureStatus.want_updates  # e.g. new glyphs for the font atlas
     assert redraw.needed(frame, pictures=1)
+
+
+def test_with_a_kept_back_buffer_only_the_panels_that_changed_are_drawn_again():
+    import ctypes
+    from types import SimpleNamespace
+
+    import numpy as np
+    from edgedog.app.redraw import Redraw, clip_rects, clip_to, merged, pixel_box
+    from imgui_bundle import imgui
+
+    class Commands(list):
+        def size(self) -> int:
+            return len(self)
+
+    def panel(name: str, x0: float, y0: float, x1: float, y1: float):
+        """A draw list: one quad's 4 vertices spanning the rectangle, one command clipped to the
+        display (as a panel's first command is)."""
+        vertices = np.zeros((4, 5), np.float32)
+        vertices[:, :2] = [(x0, y0), (x1, y0), (x1, y1), (x0, y1)]
+        data = ctypes.create_string_buffer(vertices.tobytes(), vertices.nbytes)
+        return SimpleNamespace(_owner_name=name, data=data, vtx_buffer=SimpleNamespace(
+            size=lambda: 4, data_address=lambda: ctypes.addressof(data)),
+            cmd_buffer=Commands([SimpleNamespace(clip_rect=imgui.ImVec4(0, 0, 800, 600))]))
+
+    lists = [panel("Controls", 0, 0, 200, 600), panel("3D view", 200, 0, 800, 400),
+             panel("##status", 0, 580, 800, 600)]
+    frame = SimpleNamespace(display_size=imgui.ImVec2(800, 600), display_pos=imgui.ImVec2(0, 0),
+                            framebuffer_scale=imgui.ImVec2(1, 1), cmd_lists=lists, textures=[])
+    redraw = Redraw(partial=True)
+    pictures = {"3D view": 0, "Inspectors": 0}
+    assert redraw.needed(frame, pictures) and redraw.regions is None  # the first frame: whole
+    assert not redraw.needed(frame, pictures)
+    # The view re-drawn and the status line's text changed: those two, not the panel between them.
+    ctypes.memmove(lists[2].data, np.float32([0, 579]).tobytes(), 8)  # a vertex moved up a pixel
+    assert redraw.needed(frame, {**pictures, "3D view": 1})
+    assert sorted(redraw.regions) == [(0, 579, 800, 600), (200, 0, 800, 400)]
+    assert pixel_box((200, 0, 800, 400), frame, 600) == (200, 200, 600, 400)  # GL's y from the bottom
+    # Drawing a region clips every command to it.
+    original = clip_rects(frame)
+    clip_to(frame, (200, 0, 800, 400), original)
+    clip = lists[0].cmd_buffer[0].clip_rect
+    assert (clip.x, clip.y, clip.z, clip.w) == (200, 0, 800, 400)  # was the whole display
+    clip_to(frame, (0, 579, 800, 600), original)  # the next region: from the clip rects as they were
+    clip = lists[0].cmd_buffer[0].clip_rect
+    assert (clip.x, clip.y, clip.z, clip.w) == (0, 579, 800, 600)
+    assert merged([(0, 0, 10, 10), (20, 0, 30, 10), (5, 5, 25, 8)]) == [(0, 0, 30, 10)]
+    # Without a kept back buffer any change draws the whole frame; an exposed window is drawn whole.
+    whole = Redraw()
+    assert whole.needed(frame, pictures) and whole.regions is None
+    redraw.invalidate()
+    assert redraw.needed(frame, {**pictures, "3D view": 1}) and redraw.regions is None
+
+
+def test_each_region_clips_imguis_own_draw_commands_from_their_clip_rects_as_built():
+    from edgedog.app.redraw import clip_rects, clip_to
+    from imgui_bundle import imgui
+
+    context = imgui.create_context()
+    try:
+        io = imgui.get_io()
+        io.display_size = imgui.ImVec2(800, 600)
+        io.backend_flags |= imgui.BackendFlags_.renderer_has_textures  # no font atlas to upload
+        for _ in range(2):  # a new window shows from its second frame
+            imgui.new_frame()
+            imgui.set_next_window_pos(imgui.ImVec2(10, 10))
+            imgui.begin("A")
+            imgui.text("hello")
+            imgui.end()
+            imgui.render()
+        frame = imgui.get_draw_data()
+        original = clip_rects(frame)
+        for region in [(0, 0, 50, 50), (100, 100, 200, 200)]:
+            clip_to(frame, region, original)
+            for draw_list, clips in zip(frame.cmd_lists, original):
+                for index, built in enumerate(clips):
+                    clip = draw_list.cmd_buffer[index].clip_rect
+                    assert (clip.x, clip.y, clip.z, clip.w) == (
+                        max(built[0], region[0]), max(built[1], region[1]),
+                        min(built[2], region[2]), min(built[3], region[3]))
+    finally:
+        imgui.destroy_context(context)
