@@ -8,11 +8,11 @@ frame shown, a picture it shows was re-drawn (the 3D view, the inspectors), or i
 texture to upload.
 
 Where the back buffer keeps the last frame after a swap (a software OpenGL's does: it is a plain
-image copied to the window), only the regions that changed are drawn again: each panel's draw
-list is compared with its own in the frame shown, and the rectangles of those that differ (as
-shown before and now; overlapping ones merged) are each cleared and drawn, every draw command
-clipped to them. While the user orbits the 3D view, that is the view and a readout or two, not
-the whole window.
+image copied to the window), only the region that changed is drawn again: each panel's draw
+list is compared with its own in the frame shown, and the rectangle around those that differ
+(as shown before and now) is cleared and drawn, every draw command clipped to it; the whole
+frame when that covers most of the window. While the user orbits the 3D view, that is mostly the
+view alone.
 """
 
 from __future__ import annotations
@@ -28,6 +28,9 @@ from imgui_bundle import imgui
 
 VERTEX_BYTES = 20
 """sizeof(ImDrawVert): position (2 floats), texture coordinates (2 floats), colour (4 bytes)."""
+WHOLE_SHARE = 0.6
+"""A region that changed larger than this share of the window: the whole frame is drawn (as
+cheap, and no clipping to do)."""
 Rect = tuple[float, float, float, float]
 """(x0, y0, x1, y1) in imgui's display coordinates (points)."""
 
@@ -85,23 +88,6 @@ def textures_pending(draw_data: imgui.ImDrawData) -> bool:
     return any(texture.status != imgui.ImTextureStatus.ok for texture in draw_data.textures)
 
 
-def overlap(a: Rect, b: Rect) -> bool:
-    return a[0] < b[2] and b[0] < a[2] and a[1] < b[3] and b[1] < a[3]
-
-
-def merged(rects: list[Rect]) -> list[Rect]:
-    """`rects` with every two that overlap replaced by their union, until none do."""
-    out: list[Rect] = []
-    for rect in rects:
-        while True:
-            hit = next((index for index, other in enumerate(out) if overlap(rect, other)), None)
-            if hit is None:
-                break
-            rect = union(rect, out.pop(hit))
-        out.append(rect)
-    return out
-
-
 def clip_rects(draw_data: imgui.ImDrawData) -> list[list[Rect]]:
     """Every draw command's clip rectangle, per draw list, copied (imgui_bundle's `clip_rect` is
     a view of the command's own, which `clip_to` overwrites)."""
@@ -134,7 +120,7 @@ def pixel_box(region: Rect, draw_data: imgui.ImDrawData, height: int) -> tuple[i
 
 class Redraw:
     """Remembers the frame shown; `needed` says whether the next one differs from it and sets
-    `regions`: the rectangles to draw again, None for the whole window.
+    `regions`: the rectangle to draw again (one, in a list), None for the whole window.
 
     Args:
         partial: whether the back buffer keeps the frame shown after a swap, so that drawing a
@@ -185,8 +171,14 @@ class Redraw:
             if count != old_pictures.get(window):  # its picture was re-drawn: the window's lists
                 dirty += [rect for (name, _), (_, rect) in lists.items()
                           if rect is not None and (name == window or name.startswith(window + "/"))]
-        regions = merged([rect for rect in dirty if rect[2] > rect[0] and rect[3] > rect[1]])
-        if not regions:
+        region = None
+        for rect in dirty:
+            if rect[2] > rect[0] and rect[3] > rect[1]:
+                region = union(region, rect)
+        if region is None:
             return False
-        self.regions = regions
+        # One pass at most: with a software OpenGL each pass costs every vertex of the commands it
+        # touches, and one that waits for the last holds the GIL. A large region: the whole frame.
+        area = (region[2] - region[0]) * (region[3] - region[1])
+        self.regions = None if area > WHOLE_SHARE * size.x * size.y else [region]
         return True

@@ -20,6 +20,7 @@ from edgedog.app.redraw import Rect, Redraw, clip_rects, clip_to, pixel_box
 from edgedog.app.script import ScriptDriver
 from edgedog.app.session import Session
 from edgedog.app.studio import Studio
+from edgedog.app.view3d import finish_without_gil
 from edgedog.renderer.gl.context import GL_VERSION, window_context
 
 ACTIVE_FPS, TRAINING_FPS, IDLE_FPS, TRAINING_IDLE_FPS = 30, 12, 2, 10
@@ -97,7 +98,9 @@ def _draw(window, ctx: moderngl.Context, requests: list, regions: list[Rect] | N
         imgui.backends.opengl3_render_draw_data(draw_data)
     elif changed:
         original = clip_rects(draw_data)
-        for region in regions:
+        for index, region in enumerate(regions):
+            if index:  # a software OpenGL waits for the last region's drawing before it uploads the
+                finish_without_gil()  # vertices again, inside calls that hold the GIL: wait without it
             clip_to(draw_data, region, original)
             ctx.screen.clear(*layout.background(), viewport=pixel_box(region, draw_data, height))
             imgui.backends.opengl3_render_draw_data(draw_data)
