@@ -10,7 +10,9 @@ server's XTest extension, as xdotool does; the window under the pointer gets the
 manager runs), then pause and orbit again (the UI alone). Then trains the same run headless to
 the same step, so that each phase's rate is compared with the headless rate over the same steps.
 Prints one row per phase (fps: frames built, each showing what changed; drawn/s: those that
-differed from the last and were drawn) and writes the figures as JSON (--out). A measurement,
+differed from the last and were drawn; CPU %: the studio process's; UI CPU %: its window's
+threads', the main thread and a software OpenGL's rasterizer threads, i.e. what the window takes
+from the training where the CPU is shared) and writes the figures as JSON (--out). A measurement,
 not a test: the figures depend on the machine and on what else runs on it.
 """
 
@@ -135,7 +137,9 @@ def phase_figures(start: dict, end: dict, headless: np.ndarray) -> dict:
             "steps_per_second": round(rate, 1), "headless_steps_per_second": headless_rate,
             "share_of_headless": None if not headless_rate else round(rate / headless_rate, 2),
             "view_renders_per_second": round((end["view_renders"] - start["view_renders"]) / seconds, 1),
-            "cpu_percent": round(100 * (end["cpu_seconds"] - start["cpu_seconds"]) / seconds)}
+            "cpu_percent": round(100 * (end["cpu_seconds"] - start["cpu_seconds"]) / seconds),
+            "ui_cpu_percent": round(100 * (end["ui_cpu_seconds"] - start["ui_cpu_seconds"]) / seconds)
+            if "ui_cpu_seconds" in start else None}
 
 
 def typing_figures(sent: list[float], end: dict) -> dict:
@@ -221,14 +225,16 @@ def main(argv: list[str] | None = None) -> int:
     options += [arg for override in args.overrides for arg in ("--set", override)]
     options += [] if args.preset is None else ["--preset", args.preset]
     figures = measure(args.scene, args.seconds, args.size, options)
-    print(f"{'phase':<22} {'fps':>6} {'drawn/s':>8} {'steps/s':>8} {'headless':>8} {'share':>6} {'CPU %':>6}")
+    print(f"{'phase':<22} {'fps':>6} {'drawn/s':>8} {'steps/s':>8} {'headless':>8} {'share':>6} {'CPU %':>6} "
+          f"{'UI CPU %':>8}")
     for name, row in figures.items():
         headless, share = row["headless_steps_per_second"], row["share_of_headless"]
         headless = "-" if headless is None else f"{headless:.1f}"
         share = "-" if share is None else f"{share:.0%}"
+        ui = "-" if row["ui_cpu_percent"] is None else f"{row['ui_cpu_percent']:d}"
         print(f"{name:<22} {row['fps']:6.1f} {row['drawn_per_second']:8.1f} {row['steps_per_second']:8.1f} "
               f"{headless:>8} {share:>6} "
-              f"{row['cpu_percent']:6d}")
+              f"{row['cpu_percent']:6d} {ui:>8}")
     typing = figures["training + typing"]
     print(f"typing {typing['keys']} keys: {typing['keys_lost']} lost, drawn after "
           f"{typing['latency_ms_median']} ms (median), {typing['latency_ms_max']} ms at most")
