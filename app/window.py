@@ -28,8 +28,9 @@ ACTIVE_FPS, TRAINING_FPS, IDLE_FPS, TRAINING_IDLE_FPS = 30, 12, 2, 10
 2-core machine, orbiting at 20 a second left the training under half its headless rate, at 12
 one half to two thirds), and otherwise (TRAINING_IDLE_FPS while a run trains: its snapshots and
 readouts show within a tenth of a second). A frame is built at each (cheap), but drawn only when
-it differs from the one shown (redraw.py): with a software OpenGL drawing costs tens of
-milliseconds of CPU, which training needs. Input wakes the loop at once, and a key or a typed
+it differs from the one shown (redraw.py), and with a software OpenGL only where it differs
+(the 3D view alone while orbiting): there drawing costs milliseconds of CPU per megapixel, which
+training needs. Input wakes the loop at once, and a key or a typed
 character is drawn in the very next frame (python -m edgedog.bench.studio measures the rates and
 how soon keys are drawn)."""
 
@@ -98,7 +99,7 @@ def _draw(window, ctx: moderngl.Context, requests: list, regions: list[Rect] | N
         imgui.backends.opengl3_render_draw_data(draw_data)
     elif changed:
         original = clip_rects(draw_data)
-        for index, region in enumerate(regions):
+        for index, region in enumerate(regions):  # one (redraw.py: each pass costs every vertex)
             if index:  # a software OpenGL waits for the last region's drawing before it uploads the
                 finish_without_gil()  # vertices again, inside calls that hold the GIL: wait without it
             clip_to(draw_data, region, original)
