@@ -107,6 +107,17 @@ def clip_to(draw_data: imgui.ImDrawData, region: Rect, original: list[list[Rect]
                                                      min(clip[3], y1))
 
 
+def aligned(region: Rect, draw_data: imgui.ImDrawData) -> Rect:
+    """`region` widened to whole framebuffer pixels: the renderer truncates a clip rectangle's
+    corner and size to pixels separately, so that a fractional one leaves a row or column that
+    the clear touched undrawn."""
+    scale, origin = draw_data.framebuffer_scale, draw_data.display_pos
+    return (origin.x + math.floor((region[0] - origin.x) * scale.x) / scale.x,
+            origin.y + math.floor((region[1] - origin.y) * scale.y) / scale.y,
+            origin.x + math.ceil((region[2] - origin.x) * scale.x) / scale.x,
+            origin.y + math.ceil((region[3] - origin.y) * scale.y) / scale.y)
+
+
 def pixel_box(region: Rect, draw_data: imgui.ImDrawData, height: int) -> tuple[int, int, int, int]:
     """`region` as GL's (x, y, width, height) in framebuffer pixels (y from the bottom), widened
     to whole pixels."""

@@ -5,6 +5,7 @@ backends, all on the main thread, and the frame loop around `Studio.frame`.
 from __future__ import annotations
 
 import ctypes
+import os
 import time
 from pathlib import Path
 
@@ -16,7 +17,7 @@ import moderngl
 import numpy as np
 from edgedog.app import layout
 from edgedog.app.display import InputWatch, init_glfw, open_window, scale_for_dpi
-from edgedog.app.redraw import Rect, Redraw, clip_rects, clip_to, pixel_box
+from edgedog.app.redraw import Rect, Redraw, aligned, clip_rects, clip_to, pixel_box
 from edgedog.app.script import ScriptDriver
 from edgedog.app.session import Session
 from edgedog.app.studio import Studio
@@ -28,9 +29,9 @@ ACTIVE_FPS, TRAINING_FPS, IDLE_FPS, TRAINING_IDLE_FPS = 30, 12, 2, 10
 2-core machine, orbiting at 20 a second left the training under half its headless rate, at 12
 one half to two thirds), and otherwise (TRAINING_IDLE_FPS while a run trains: its snapshots and
 readouts show within a tenth of a second). A frame is built at each (cheap), but drawn only when
-it differs from the one shown (redraw.py), and with a software OpenGL only where it differs
-(the 3D view alone while orbiting): there drawing costs milliseconds of CPU per megapixel, which
-training needs. Input wakes the loop at once, and a key or a typed
+it differs from the one shown (redraw.py; with EDGEDOG_STUDIO_PARTIAL=1 and a software OpenGL
+only where it differs, the 3D view alone while orbiting): with a software OpenGL drawing costs
+tens of milliseconds of CPU, which training needs. Input wakes the loop at once, and a key or a typed
 character is drawn in the very next frame (python -m edgedog.bench.studio measures the rates and
 how soon keys are drawn)."""
 
@@ -45,6 +46,11 @@ def save_screenshot(ctx: moderngl.Context, path: Path, width: int, height: int) 
     return path
 
 
+PARTIAL_REDRAW = os.environ.get("EDGEDOG_STUDIO_PARTIAL") == "1"
+"""Draw only the region that changed with a software OpenGL (redraw.py): off unless
+EDGEDOG_STUDIO_PARTIAL=1, while a one-pixel column at a panel's edge can keep an older colour
+after a focus change (tests/test_studio_window.py::test_help_opens_in_the_same_place_each_time
+fails with it on)."""
 SOFTWARE_RENDERERS = ("llvmpipe", "softpipe", "swrast")
 """GL renderers that draw on the CPU: their back buffer is a plain image that keeps the frame
 after a swap, so that a frame only draws the region that changed (redraw.py)."""
@@ -58,7 +64,7 @@ def software_gl(ctx: moderngl.Context) -> bool:
 
 def _loop(window, ctx: moderngl.Context, studio: Studio, driver: ScriptDriver | None, watch: InputWatch
           ) -> None:
-    title, redraw = None, Redraw(partial=software_gl(ctx))
+    title, redraw = None, Redraw(partial=PARTIAL_REDRAW and software_gl(ctx))
     # The window was exposed (uncovered, restored): its content is drawn again, whole.
     glfw.set_window_refresh_callback(window, lambda _window: redraw.invalidate())
     while not glfw.window_should_close(window):
@@ -102,6 +108,7 @@ def _draw(window, ctx: moderngl.Context, requests: list, regions: list[Rect] | N
         for index, region in enumerate(regions):  # one (redraw.py: each pass costs every vertex)
             if index:  # a software OpenGL waits for the last region's drawing before it uploads the
                 finish_without_gil()  # vertices again, inside calls that hold the GIL: wait without it
+            region = aligned(region, draw_data)
             clip_to(draw_data, region, original)
             ctx.screen.clear(*layout.background(), viewport=pixel_box(region, draw_data, height))
             imgui.backends.opengl3_render_draw_data(draw_data)

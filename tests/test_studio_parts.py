@@ -156,7 +156,7 @@ def test_with_a_kept_back_buffer_only_the_panels_that_changed_are_drawn_again():
     from types import SimpleNamespace
 
     import numpy as np
-    from edgedog.app.redraw import Redraw, clip_rects, clip_to, pixel_box
+    from edgedog.app.redraw import Redraw, aligned, clip_rects, clip_to, pixel_box
     from imgui_bundle import imgui
 
     class Commands(list):
@@ -189,6 +189,9 @@ def test_with_a_kept_back_buffer_only_the_panels_that_changed_are_drawn_again():
     ctypes.memmove(lists[2].data, np.float32([0, 580]).tobytes(), 8)
     assert redraw.needed(frame, {**pictures, "3D view": 2}) and redraw.regions is None
     assert pixel_box((200, 0, 800, 400), frame, 600) == (200, 200, 600, 400)  # GL's y from the bottom
+    # A fractional region (a border's vertices lie on pixel centres) is widened to whole pixels, so
+    # that the renderer's scissor covers every pixel the clear touched.
+    assert aligned((329.5, 0.5, 998.5, 413.5), frame) == (329, 0, 999, 414)
     # Drawing a region clips every command to it.
     original = clip_rects(frame)
     clip_to(frame, (200, 0, 800, 400), original)
