@@ -278,7 +278,7 @@ def markdown(result: dict) -> str:
              "|---|---|---|---|---|---|---|---|---|---|---|"]
     for s in result["variants"]:
         def fit(slope, intercept):
-            return "–" if slope is None else f"{intercept:.0f} + {slope:.0f} L"
+            return "–" if slope is None else f"{intercept:.0f} {'-' if slope < 0 else '+'} {abs(slope):.0f} L"
         rows.append(f"| {s['variant']} | {s['scenes']} | {s['ratio_median']:.0f} | {s['ratio_min']:.0f} - "
                     f"{s['ratio_max']:.0f} | {100 * s['share_min']:.0f} - {100 * s['share_max']:.0f} % | "
                     f"{s['within_band']} of {s['scenes']} | {s['constant_within_band']} of {s['scenes']} | "
