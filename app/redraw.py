@@ -35,13 +35,19 @@ Rect = tuple[float, float, float, float]
 """(x0, y0, x1, y1) in imgui's display coordinates (points)."""
 
 
-def list_digest(draw_list) -> int:
-    """A checksum of what one draw list draws: its vertices and the number of its commands."""
+def vertex_bytes(draw_list) -> bytes:
+    """A copy of a draw list's vertices (VERTEX_BYTES each)."""
     vertices = draw_list.vtx_buffer
-    digest = zlib.crc32(struct.pack("i", draw_list.cmd_buffer.size()))
-    if vertices.size():
-        digest = zlib.crc32(ctypes.string_at(vertices.data_address(), vertices.size() * VERTEX_BYTES), digest)
-    return digest
+    if not vertices.size():
+        return b""
+    return ctypes.string_at(vertices.data_address(), vertices.size() * VERTEX_BYTES)
+
+
+def list_digest(draw_list, vertices: bytes | None = None) -> int:
+    """A checksum of what one draw list draws: its vertices (`vertex_bytes`, given or read) and
+    the number of its commands."""
+    data = vertex_bytes(draw_list) if vertices is None else vertices
+    return zlib.crc32(data, zlib.crc32(struct.pack("i", draw_list.cmd_buffer.size())))
 
 
 def draw_digest(draw_data: imgui.ImDrawData) -> int:
@@ -56,11 +62,10 @@ def draw_digest(draw_data: imgui.ImDrawData) -> int:
 def list_state(draw_list) -> tuple[int, Rect | None]:
     """A draw list's digest (as `list_digest`) and the rectangle it can touch: its vertices'
     bounds within its clip rectangles (None when it draws nothing)."""
-    vertices, commands = draw_list.vtx_buffer, draw_list.cmd_buffer
-    digest = zlib.crc32(struct.pack("i", commands.size()))
-    if not vertices.size():
+    data, commands = vertex_bytes(draw_list), draw_list.cmd_buffer
+    digest = list_digest(draw_list, data)
+    if not data:
         return digest, None
-    data = ctypes.string_at(vertices.data_address(), vertices.size() * VERTEX_BYTES)
     positions = np.frombuffer(data, np.float32).reshape(-1, VERTEX_BYTES // 4)[:, :2]
     low, high = positions.min(axis=0), positions.max(axis=0)
     clip = None
@@ -68,8 +73,8 @@ def list_state(draw_list) -> tuple[int, Rect | None]:
         rect = commands[index].clip_rect
         clip = union(clip, (rect.x, rect.y, rect.z, rect.w))
     x0, y0, x1, y1 = clip
-    return zlib.crc32(data, digest), (max(float(low[0]), x0), max(float(low[1]), y0),
-                                      min(float(high[0]), x1), min(float(high[1]), y1))
+    return digest, (max(float(low[0]), x0), max(float(low[1]), y0), min(float(high[0]), x1),
+                    min(float(high[1]), y1))
 
 
 def union(a: Rect | None, b: Rect | None) -> Rect | None:
@@ -107,31 +112,33 @@ def clip_to(draw_data: imgui.ImDrawData, region: Rect, original: list[list[Rect]
                                                      min(clip[3], y1))
 
 
+def _pixel_corners(region: Rect, draw_data: imgui.ImDrawData) -> tuple[int, int, int, int]:
+    """`region`'s corners in framebuffer pixels (y down), widened to whole pixels."""
+    scale, origin = draw_data.framebuffer_scale, draw_data.display_pos
+    return (math.floor((region[0] - origin.x) * scale.x), math.floor((region[1] - origin.y) * scale.y),
+            math.ceil((region[2] - origin.x) * scale.x), math.ceil((region[3] - origin.y) * scale.y))
+
+
 def aligned(region: Rect, draw_data: imgui.ImDrawData) -> Rect:
     """`region` widened to whole framebuffer pixels: the renderer truncates a clip rectangle's
     corner and size to pixels separately, so that a fractional one leaves a row or column that
     the clear touched undrawn."""
     scale, origin = draw_data.framebuffer_scale, draw_data.display_pos
-    return (origin.x + math.floor((region[0] - origin.x) * scale.x) / scale.x,
-            origin.y + math.floor((region[1] - origin.y) * scale.y) / scale.y,
-            origin.x + math.ceil((region[2] - origin.x) * scale.x) / scale.x,
-            origin.y + math.ceil((region[3] - origin.y) * scale.y) / scale.y)
+    x0, y0, x1, y1 = _pixel_corners(region, draw_data)
+    return (origin.x + x0 / scale.x, origin.y + y0 / scale.y,
+            origin.x + x1 / scale.x, origin.y + y1 / scale.y)
 
 
 def pixel_box(region: Rect, draw_data: imgui.ImDrawData, height: int) -> tuple[int, int, int, int]:
     """`region` as GL's (x, y, width, height) in framebuffer pixels (y from the bottom), widened
     to whole pixels."""
-    scale, origin = draw_data.framebuffer_scale, draw_data.display_pos
-    x0 = math.floor((region[0] - origin.x) * scale.x)
-    y0 = math.floor((region[1] - origin.y) * scale.y)
-    x1 = math.ceil((region[2] - origin.x) * scale.x)
-    y1 = math.ceil((region[3] - origin.y) * scale.y)
+    x0, y0, x1, y1 = _pixel_corners(region, draw_data)
     return x0, height - y1, max(x1 - x0, 0), max(y1 - y0, 0)
 
 
 class Redraw:
     """Remembers the frame shown; `needed` says whether the next one differs from it and sets
-    `regions`: the rectangle to draw again (one, in a list), None for the whole window.
+    `region`: the rectangle to draw again, None for the whole window.
 
     Args:
         partial: whether the back buffer keeps the frame shown after a swap, so that drawing a
@@ -140,7 +147,7 @@ class Redraw:
 
     def __init__(self, partial: bool = False):
         self.partial = partial
-        self.regions: list[Rect] | None = None
+        self.region: Rect | None = None
         self._shown: tuple[int, object] | None = None
         self._lists: dict[tuple[str, int], tuple[int, Rect | None]] = {}
         self._pictures: Mapping[str, int] | None = None
@@ -156,7 +163,7 @@ class Redraw:
         pending = textures_pending(draw_data)
         if not self.partial:
             frame = (draw_digest(draw_data), pictures)
-            self.regions = None
+            self.region = None
             if frame == self._shown and not pending:
                 return False
             self._shown = frame
@@ -171,7 +178,7 @@ class Redraw:
         self._shown, self._lists, self._pictures = (size.x, size.y), lists, pictures
         if old_size != (size.x, size.y) or pending or not isinstance(pictures, Mapping) or not isinstance(
                 old_pictures, Mapping):
-            self.regions = None  # the whole window: its first frame, a new size, new textures
+            self.region = None  # the whole window: its first frame, a new size, new textures
             return True
         dirty = []
         for key in lists.keys() | old_lists.keys():
@@ -191,5 +198,5 @@ class Redraw:
         # One pass at most: with a software OpenGL each pass costs every vertex of the commands it
         # touches, and one that waits for the last holds the GIL. A large region: the whole frame.
         area = (region[2] - region[0]) * (region[3] - region[1])
-        self.regions = None if area > WHOLE_SHARE * size.x * size.y else [region]
+        self.region = None if area > WHOLE_SHARE * size.x * size.y else region
         return True

@@ -21,7 +21,6 @@ from edgedog.app.redraw import Rect, Redraw, aligned, clip_rects, clip_to, pixel
 from edgedog.app.script import ScriptDriver
 from edgedog.app.session import Session
 from edgedog.app.studio import Studio
-from edgedog.app.view3d import finish_without_gil
 from edgedog.renderer.gl.context import GL_VERSION, window_context
 
 ACTIVE_FPS, TRAINING_FPS, IDLE_FPS, TRAINING_IDLE_FPS = 30, 12, 2, 10
@@ -81,7 +80,7 @@ def _loop(window, ctx: moderngl.Context, studio: Studio, driver: ScriptDriver | 
         imgui.render()
         changed = redraw.needed(imgui.get_draw_data(), studio.pictures)
         if changed or requests:  # a screenshot of an unchanged frame: the back buffer holds it, if kept
-            _draw(window, ctx, requests, redraw.regions if changed or redraw.partial else None, changed)
+            _draw(window, ctx, requests, redraw.region if changed or redraw.partial else None, changed)
             studio.frames_drawn += 1
             watch.frame_drawn()
         if studio.title != title:
@@ -91,27 +90,23 @@ def _loop(window, ctx: moderngl.Context, studio: Studio, driver: ScriptDriver | 
         _wait_for_next_frame(watch, TRAINING_FPS if studio.training else ACTIVE_FPS, idle, started)
 
 
-def _draw(window, ctx: moderngl.Context, requests: list, regions: list[Rect] | None = None,
+def _draw(window, ctx: moderngl.Context, requests: list, region: Rect | None = None,
           changed: bool = True) -> None:
-    """Draw imgui's frame (only `regions` of it, in display coordinates, when given: the back
+    """Draw imgui's frame (only `region` of it, in display coordinates, when given: the back
     buffer holds the rest from the frame shown; nothing when not `changed`), act on the requests
     only the window can (screenshots of this frame, closing), and show the frame."""
     width, height = glfw.get_framebuffer_size(window)
     ctx.screen.viewport = (0, 0, width, height)
     ctx.screen.use()
     draw_data = imgui.get_draw_data()
-    if regions is None:
+    if region is None:
         ctx.screen.clear(*layout.background())
         imgui.backends.opengl3_render_draw_data(draw_data)
     elif changed:
-        original = clip_rects(draw_data)
-        for index, region in enumerate(regions):  # one (redraw.py: each pass costs every vertex)
-            if index:  # a software OpenGL waits for the last region's drawing before it uploads the
-                finish_without_gil()  # vertices again, inside calls that hold the GIL: wait without it
-            region = aligned(region, draw_data)
-            clip_to(draw_data, region, original)
-            ctx.screen.clear(*layout.background(), viewport=pixel_box(region, draw_data, height))
-            imgui.backends.opengl3_render_draw_data(draw_data)
+        region = aligned(region, draw_data)
+        clip_to(draw_data, region, clip_rects(draw_data))
+        ctx.screen.clear(*layout.background(), viewport=pixel_box(region, draw_data, height))
+        imgui.backends.opengl3_render_draw_data(draw_data)
     for request in requests:
         if request.name == "screenshot":
             save_screenshot(ctx, Path(request.args["path"]), width, height)

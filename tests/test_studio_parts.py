@@ -179,15 +179,15 @@ def test_with_a_kept_back_buffer_only_the_panels_that_changed_are_drawn_again():
                             framebuffer_scale=imgui.ImVec2(1, 1), cmd_lists=lists, textures=[])
     redraw = Redraw(partial=True)
     pictures = {"3D view": 0, "Inspectors": 0}
-    assert redraw.needed(frame, pictures) and redraw.regions is None  # the first frame: whole
+    assert redraw.needed(frame, pictures) and redraw.region is None  # the first frame: whole
     assert not redraw.needed(frame, pictures)
     # The view re-drawn: the view alone; the status line's text changed: the status line alone.
-    assert redraw.needed(frame, {**pictures, "3D view": 1}) and redraw.regions == [(200, 0, 800, 400)]
+    assert redraw.needed(frame, {**pictures, "3D view": 1}) and redraw.region == (200, 0, 800, 400)
     ctypes.memmove(lists[2].data, np.float32([0, 579]).tobytes(), 8)  # a vertex moved up a pixel
-    assert redraw.needed(frame, {**pictures, "3D view": 1}) and redraw.regions == [(0, 579, 800, 600)]
+    assert redraw.needed(frame, {**pictures, "3D view": 1}) and redraw.region == (0, 579, 800, 600)
     # Both: the rectangle around them covers most of the window, which is drawn whole.
     ctypes.memmove(lists[2].data, np.float32([0, 580]).tobytes(), 8)
-    assert redraw.needed(frame, {**pictures, "3D view": 2}) and redraw.regions is None
+    assert redraw.needed(frame, {**pictures, "3D view": 2}) and redraw.region is None
     assert pixel_box((200, 0, 800, 400), frame, 600) == (200, 200, 600, 400)  # GL's y from the bottom
     # A fractional region (a border's vertices lie on pixel centres) is widened to whole pixels, so
     # that the renderer's scissor covers every pixel the clear touched.
@@ -202,9 +202,9 @@ def test_with_a_kept_back_buffer_only_the_panels_that_changed_are_drawn_again():
     assert (clip.x, clip.y, clip.z, clip.w) == (0, 579, 800, 600)
     # Without a kept back buffer any change draws the whole frame; an exposed window is drawn whole.
     whole = Redraw()
-    assert whole.needed(frame, pictures) and whole.regions is None
+    assert whole.needed(frame, pictures) and whole.region is None
     redraw.invalidate()
-    assert redraw.needed(frame, {**pictures, "3D view": 1}) and redraw.regions is None
+    assert redraw.needed(frame, {**pictures, "3D view": 1}) and redraw.region is None
 
 
 def test_each_region_clips_imguis_own_draw_commands_from_their_clip_rects_as_built():
