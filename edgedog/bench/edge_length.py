@@ -34,7 +34,6 @@ EDGE_LENGTH_FILES = ("edge_length.json", "edge_length.md", "edge_length.png")
 """What the bench writes into OUT, its record first."""
 RATIO_BAND = 0.30
 """Issue 43's target: every scene's primitives per unit of edge length within +-30 % of the median."""
-SCENE_MANIFEST = "edgedog_scene.json"
 
 
 @dataclass(frozen=True)
@@ -138,7 +137,9 @@ def edge_length(scene_root: Path) -> EdgeLength:
 
 def _design(scene_root: Path) -> str:
     """A generated scene's shape name from its manifest, else ''."""
-    manifest = scene_root / SCENE_MANIFEST
+    from edgedog.builtin.writer import MANIFEST
+
+    manifest = scene_root / MANIFEST
     if not manifest.is_file():
         return ""
     try:
