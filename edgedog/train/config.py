@@ -73,6 +73,11 @@ MAX_RATE = 1.0
 (or 1 px, 1 log-scale unit) per step is already far past any useful rate."""
 MAX_DECAY = 1 / MAX_RATE
 """Weight decay: each step shrinks a parameter by its learning rate times this, at most all of it."""
+MAX_HULL_CELLS = 192
+"""The visual hull's grid: 192^3 cells are 7 million centres projected into every view (170 MB
+of coordinates while carving)."""
+MAX_VIEWS = 100_000
+"""More views than any capture holds."""
 
 
 @dataclass(frozen=True)
@@ -99,6 +104,7 @@ EdgeProfile = Literal["auto", "raw", "thin", "profile"]
 MapCorrection = Literal["none", "calibrated", "shift", "learned"]
 SilhouetteCorrection = Literal["auto", "measured", "none"]
 StopMode = Literal["off", "run", "coarse", "both"]
+Occlusion = Literal["off", "hull"]
 """What convergence ends (see `ScheduleSettings.stop`)."""
 
 
@@ -163,6 +169,21 @@ class ModelSettings(Settings):
     view_opacity_cap: Annotated[float, Range(0, MAX_LOGIT)] = 6.0
     """Largest |b| (logit units): a primitive's logit varies by at most twice this over the sphere
     of directions."""
+    occlusion: Occlusion = "off"
+    """'hull': a primitive is not drawn in a view where the object's visual hull, carved from the
+    scene's masks, stands in front of it by more than `occlusion_margin` cells
+    (edgedog.train.occlusion), so that the views a wall hides an edge from do not penalise its
+    primitive, and density control counts only the views that see it. Needs masks (mask files
+    or RGBA images). 'off': every primitive is drawn in every view (the paper's model)."""
+    occlusion_cells: Annotated[int, Range(16, MAX_HULL_CELLS)] = 128
+    """Cells per side of the visual hull's grid over the scene's cube (`init.side`)."""
+    occlusion_margin: Annotated[float, Range(0, MAX_HULL_CELLS)] = 3.0
+    """Cells a primitive must lie behind the hull's depth in a view to be hidden from it."""
+    occlusion_min_views: Annotated[int, Range(1, MAX_VIEWS)] = 4
+    """A primitive that fewer of the views it projects into see (one inside the hull, where the
+    masks leave it larger than the object) is drawn in every view."""
+    occlusion_downscale: Annotated[int, Range(1, MAX_DOWNSCALE)] = 4
+    """The hull's depth in each view is taken at 1/this of the view's size."""
 
 
 @dataclass(frozen=True)

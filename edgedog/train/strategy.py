@@ -4,7 +4,7 @@ the primitives at a target spacing along the edges (edgedog.train.spacing)."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import torch
@@ -14,10 +14,15 @@ from edgedog.renderer.rasterize import RenderOutput, fisher_information
 from edgedog.scenes.camera import Camera
 from edgedog.train.config import MAX_COPIES, TrainConfig
 from edgedog.train.model import EdgeModel
+from edgedog.train.occlusion import Occlusion, hide
 from edgedog.train.optim import Optimizers
 from edgedog.train.resolution import ViewSet
 from edgedog.train.spacing import edge_directions, redundant, spacing_length, split_offsets, split_pieces
 from edgedog.train.view_opacity import camera_centres, largest_logits, relative_opacity, seen_from
+
+
+MIN_DRAWN = 1e-6
+"""The Fisher scores' divisor (how much the views draw a primitive) is at least this."""
 
 
 @dataclass
@@ -64,10 +69,11 @@ def edge_hit_share(points: np.ndarray, pinholes: list[Camera], edge_masks: list[
 class DensityStrategy:
     """Decides, at the end of each epoch, which primitives to duplicate, cull, space or prune."""
 
-    def __init__(self, config: TrainConfig, raster: RasterConfig):
+    def __init__(self, config: TrainConfig, raster: RasterConfig, occlusion: Occlusion | None = None):
         self.settings, self.epochs = config.strategy, config.schedule.epochs
         self.raster = raster
         self.view_opacity = config.model.view_opacity
+        self.occlusion = occlusion
 
     def initial_state(self, n: int, device: torch.device) -> StrategyState:
         return StrategyState(absgrad=torch.zeros(n, device=device))
@@ -154,16 +160,24 @@ class DensityStrategy:
                 model.opacity_logits.clamp_(max=cap)
         return {"event": f"cull_{reason}", "before": before, "after": len(model)}
 
-    def _edge_hit_share(self, model: EdgeModel, views: ViewSet) -> torch.Tensor:
-        """(N,) `edge_hit_share` of the centres; with a view-dependent opacity, each view counts
-        by the primitive's opacity there relative to its largest (a primitive hidden from a
-        view is not expected on its edges)."""
+    def _drawn(self, model: EdgeModel, views: ViewSet) -> torch.Tensor | None:
+        """(V, N) how much each view draws each primitive, relative to its largest opacity: the
+        view-dependent opacity's share, 0 where the visual hull hides it (no gradient); None
+        when every view draws every primitive alike."""
         weights = None
         if self.view_opacity:
             weights = relative_opacity(model.opacity_logits, model.opacity_dirs, model.means,
                                        camera_centres(views.cameras, model.device))
+        if self.occlusion is not None:
+            drawn = self.occlusion.drawn(model.means)
+            weights = drawn if weights is None else weights * drawn
+        return weights
+
+    def _edge_hit_share(self, model: EdgeModel, views: ViewSet) -> torch.Tensor:
+        """(N,) `edge_hit_share` of the centres, each view counted by how much it draws the
+        primitive (`_drawn`): a primitive hidden from a view is not expected on its edges."""
         return edge_hit_share(model.means.detach().double().cpu().numpy(), views.pinholes, views.edge_masks,
-                              weights)
+                              self._drawn(model, views))
 
     def _space(self, model: EdgeModel, optimizers: Optimizers, state: StrategyState, views: ViewSet) -> dict:
         """Hold the primitives at the target spacing along the edges (edgedog.train.spacing): remove
@@ -215,18 +229,24 @@ class DensityStrategy:
 
     def fisher_scores(self, model: EdgeModel, views: ViewSet) -> torch.Tensor:
         """(N,) each primitive's Fisher information over the views, as the pruning ranks them (no
-        gradient). With a view-dependent opacity, each view renders the opacities seen from it and
-        the sum is divided by the views where the primitive is drawn: a primitive that few views
-        can see is not ranked below one that all views see."""
-        if not self.view_opacity:
+        gradient). With a view-dependent opacity or occlusion, each view renders the primitives
+        as it draws them and the sum is divided by how much the views draw each (`_drawn`): a
+        primitive that few views can see is not ranked below one that all views see."""
+        weights = self._drawn(model, views)
+        if weights is None:
             return fisher_information(model.primitives(), views.cameras, self.raster)
-        centres = camera_centres(views.cameras, model.device)
+        centres = camera_centres(views.cameras, model.device) if self.view_opacity else None
+        hidden = None if self.occlusion is None else self.occlusion.hidden(model.means)
         with torch.no_grad():
-            scores = sum(fisher_information(seen_from(model.primitives(), model.opacity_dirs, centre),
-                                            [camera], self.raster)
-                         for camera, centre in zip(views.cameras, centres))
-            return scores / relative_opacity(model.opacity_logits, model.opacity_dirs, model.means,
-                                             centres).sum(0)
+            scores = torch.zeros(len(model), device=model.device)
+            for view, camera in enumerate(views.cameras):
+                primitives = model.primitives()
+                if centres is not None:
+                    primitives = seen_from(primitives, model.opacity_dirs, centres[view])
+                if hidden is not None:
+                    primitives = replace(primitives, opacity_logits=hide(primitives.opacity_logits, hidden[view]))
+                scores += fisher_information(primitives, [camera], self.raster)
+            return scores / weights.sum(0).clamp_min(MIN_DRAWN)
 
     def _fisher_prune(self, model, optimizers, state, views: ViewSet, keep_ratio: float) -> dict:
         scores = self.fisher_scores(model, views)

@@ -36,6 +36,7 @@ from edgedog.train.config import TrainConfig, for_detector, from_dict, to_dict
 from edgedog.train.convergence import Convergence
 from edgedog.train.layers import LowerLayers, keep_on_residual, lower_layer_config, residual_maps
 from edgedog.train.model import EdgeModel
+from edgedog.train.occlusion import hide, scene_occlusion
 from edgedog.train.optim import Optimizers
 from edgedog.train.resolution import ViewSet, coarser
 from edgedog.train.strategy import DensityStrategy, StrategyState
@@ -204,9 +205,14 @@ class Trainer:
         self.coarse = self.views if coarse is fine else coarse.to(self.device)
         # (V, 3) camera centres of the views when the opacity depends on the view, else None.
         self.centres = camera_centres(self.cameras, self.device) if config.model.view_opacity else None
+        # The visual hull's depth in each view (model.occlusion), and the (V, N) primitives it hides
+        # from each view, found at each epoch's start (the centres move little within an epoch).
+        self.occlusion = (scene_occlusion(scene, config.model, config.init.side, self.device)
+                          if config.model.occlusion == "hull" else None)
+        self._hidden: torch.Tensor | None = None
         self.learned_shift = (LearnedShift(config, self.device) if config.maps.correction == "learned"
                               else None)
-        self.strategy = DensityStrategy(config, self.raster)
+        self.strategy = DensityStrategy(config, self.raster, self.occlusion)
         self.controls = Controls(config.strategy.keep_ratio, config.loss.weighting)
         self.generator = torch.Generator().manual_seed(config.run.seed)
         # The sampled loss's draws, on the run's device: the run's own generator on the CPU (its
@@ -316,6 +322,11 @@ class Trainer:
             primitives = self.lower.stacked_with(self.model)
             if self.centres is not None:
                 primitives = seen_from(primitives, self._stacked_dirs(), self.centres[view])
+            if self.occlusion is not None:
+                if position == 0 or self._hidden is None or self._hidden.shape[1] != len(primitives):
+                    self._hidden = self.occlusion.hidden(primitives.means)
+                primitives = dataclasses.replace(
+                    primitives, opacity_logits=hide(primitives.opacity_logits, self._hidden[view]))
             out = rasterize(primitives, views.cameras[view], self.raster)
         with record_function("pixel uncertainty"):
             weight = None

@@ -1,0 +1,244 @@
+"""Occlusion by the object's visual hull (`model.occlusion = 'hull'`).
+
+Our splats have no occluders: a primitive on an edge that the object hides from most views (a
+concave corner, the far side's edges) is drawn in every view, and the views that cannot see it
+penalise it as a false edge. With the scene's masks (mask files or RGBA images) the object's
+visual hull is known: the cells of a grid over the scene's cube whose centres every view's mask
+holds. Each view's depth of the hull (the camera z of the first hull cell along each pixel's
+ray) then says where the object stands in front of a primitive, and the primitive is not drawn
+in that view when it lies more than `model.occlusion_margin` cells behind that depth.
+
+A cell is kept when its centre projects inside every mask, so the hull's surface lies within
+half a cell of the object's where the masks are tight: a point of the surface that a view sees
+is not hidden by the hull unless the view grazes the surface; the margin absorbs the cells' size. Where the masks leave the hull
+larger than the object (a pocket that no silhouette shows), its edges lie inside the hull and
+would be hidden from every view: a primitive hidden from all but fewer than
+`model.occlusion_min_views` of the views it projects into is drawn in every view, as without
+occlusion.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+import torch
+
+from edgedog.errors import ConfigError
+from edgedog.init import scene_cube
+from edgedog.scenes.camera import Camera
+from edgedog.scenes.scene import Scene
+from edgedog.train.config import ModelSettings
+from edgedog.train.resolution import any_in_block
+
+HIDDEN_LOGIT = -40.0
+"""The opacity logit of a primitive in a view that does not see it: sigmoid is about 4e-18."""
+RAY_BLOCK = 32
+"""Samples marched at once along every ray still looking for the hull."""
+
+
+@dataclass(frozen=True)
+class HullGrid:
+    """The visual hull on a grid over an axis-aligned cube.
+
+    Attributes:
+        occupied: (R, R, R) bool, indexed [x, y, z]: the cell's centre is inside every mask.
+        origin: (3,) float64 the cube's lowest corner, world units.
+        cell: a cell's side, world units.
+    """
+
+    occupied: torch.Tensor
+    origin: np.ndarray
+    cell: float
+
+    @property
+    def resolution(self) -> int:
+        return int(self.occupied.shape[0])
+
+    def lookup(self, points: torch.Tensor) -> torch.Tensor:
+        """(...) bool: whether each point (..., 3) (float64) lies in an occupied cell (False
+        outside the cube)."""
+        index = torch.floor((points - torch.as_tensor(self.origin, dtype=points.dtype,
+                                                      device=points.device)) / self.cell).long()
+        r = self.resolution
+        inside = ((index >= 0) & (index < r)).all(dim=-1)
+        flat = (index.clamp(0, r - 1) * torch.tensor([r * r, r, 1], device=points.device)).sum(-1)
+        return inside & self.occupied.reshape(-1)[flat]
+
+
+def widened(mask: np.ndarray) -> np.ndarray:
+    """(H, W) bool `mask` grown by one pixel (3 x 3): a mask's anti-aliased border may fall on
+    either side of the 0.5 coverage it is cut at."""
+    return cv2.dilate(mask.astype(np.uint8), np.ones((3, 3), np.uint8)) > 0
+
+
+def carve(cameras: list[Camera], masks: list[np.ndarray | None], center: np.ndarray, side: float,
+          resolution: int) -> HullGrid:
+    """The visual hull of the (H, W) bool `masks` on a `resolution`^3 grid over the cube of edge
+    `side` centred on `center` (3,). A view without a mask (None) carves nothing; a cell that
+    projects outside a view's image or behind its camera is not carved by that view (the view
+    cannot tell). Each mask is grown by a pixel (`widened`)."""
+    origin = np.asarray(center, np.float64) - side / 2
+    cell = side / resolution
+    steps = (np.arange(resolution) + 0.5) * cell
+    grid = np.stack(np.meshgrid(steps, steps, steps, indexing="ij"), axis=-1).reshape(-1, 3) + origin
+    keep = np.ones(len(grid), bool)
+    for camera, mask in zip(cameras, masks):
+        if mask is None:
+            continue
+        grown = widened(mask)
+        pixels, inside = camera.pixels(grid[keep])
+        held = np.ones(len(pixels), bool)
+        held[inside] = grown[pixels[inside, 1], pixels[inside, 0]]
+        keep[np.flatnonzero(keep)[~held]] = False
+    occupied = torch.from_numpy(keep.reshape(resolution, resolution, resolution))
+    return HullGrid(occupied, origin, cell)
+
+
+def box_span(origins: np.ndarray, directions: np.ndarray, low: np.ndarray, high: np.ndarray
+             ) -> tuple[np.ndarray, np.ndarray]:
+    """(M,) entry and exit ray parameters of rays `origins` + t `directions` (M, 3) in the box
+    [low, high] (slab method; exit < entry where a ray misses it); entry >= 0."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inverse = 1.0 / directions
+        a, b = (low - origins) * inverse, (high - origins) * inverse
+    a, b = np.nan_to_num(a, nan=-np.inf), np.nan_to_num(b, nan=np.inf)
+    entry = np.maximum(np.minimum(a, b).max(axis=1), 0.0)
+    return entry, np.maximum(a, b).min(axis=1)
+
+
+def hull_depth(grid: HullGrid, camera: Camera, mask: np.ndarray | None) -> np.ndarray:
+    """(H, W) float32 camera z of the first occupied cell along each pixel's ray of `camera`
+    (inf where the ray misses the hull). Only the pixels of the (H, W) bool `mask` (None: all)
+    are marched: the hull projects inside every mask.
+
+    The rays step half a cell at a time, so no cell's interior is stepped over by more than
+    half its side."""
+    height, width = camera.height, camera.width
+    depth = np.full((height, width), np.inf, np.float32)
+    rows, cols = np.nonzero(np.ones((height, width), bool) if mask is None else mask)
+    if not len(rows):
+        return depth
+    pixels = np.stack([cols, rows, np.ones_like(cols)], axis=1).astype(np.float64)
+    # A ray's parameter t is its point's camera z: the camera-space direction has z = 1.
+    directions = (pixels @ np.linalg.inv(camera.K).T) @ camera.R
+    low = grid.origin
+    entry, leave = box_span(np.broadcast_to(camera.center, directions.shape), directions, low,
+                            low + grid.resolution * grid.cell)
+    step = 0.5 * grid.cell / np.linalg.norm(directions, axis=1)
+    alive = np.flatnonzero(entry < leave)
+    t = torch.from_numpy(entry[alive])
+    dirs, steps = torch.from_numpy(directions[alive]), torch.from_numpy(step[alive])
+    ends = torch.from_numpy(leave[alive])
+    origin = torch.from_numpy(camera.center.astype(np.float64))
+    ahead = torch.arange(RAY_BLOCK, dtype=torch.float64)
+    found = torch.full((len(alive),), np.inf, dtype=torch.float64)
+    live = torch.arange(len(alive))
+    while len(live):
+        ts = t[live, None] + steps[live, None] * ahead  # (M, B)
+        hit = grid.lookup(origin + dirs[live, None, :] * ts[..., None]) & (ts <= ends[live, None])
+        any_hit = hit.any(dim=1)
+        first = torch.argmax(hit.to(torch.uint8), dim=1)
+        found[live[any_hit]] = ts[any_hit, first[any_hit]]
+        t[live] = ts[:, -1] + steps[live]
+        live = live[~any_hit & (t[live] <= ends[live])]
+    depth[rows[alive], cols[alive]] = found.numpy().astype(np.float32)
+    return depth
+
+
+class Occlusion:
+    """Which views see which primitives, by the visual hull's depth in each view.
+
+    Attributes:
+        depths: (V, h, w) float32 hull depth of each view at the depth maps' resolution.
+        K: (V, 3, 3), w2c: (V, 4, 4) float64 the views' cameras at that resolution.
+        margin: world units a primitive must lie behind the hull's depth to be hidden.
+        min_views: a primitive seen by fewer of the views it projects into is drawn in all.
+    """
+
+    def __init__(self, depths: torch.Tensor, K: torch.Tensor, w2c: torch.Tensor, margin: float,
+                 min_views: int):
+        self.depths, self.K, self.w2c = depths, K, w2c
+        self.margin, self.min_views = float(margin), int(min_views)
+
+    @classmethod
+    def from_masks(cls, cameras: list[Camera], masks: list[np.ndarray | None], center: np.ndarray,
+                   side: float, resolution: int, margin_cells: float, min_views: int,
+                   downscale: int, device: torch.device) -> Occlusion:
+        """Carve the hull of the views' (H, W) bool `masks` (None: a view without one) over the
+        cube (`center` (3,), `side`) at `resolution` cells a side, and take each view's depth
+        of it at 1/`downscale` of the view's size."""
+        grid = carve(cameras, masks, center, side, resolution)
+        depths, Ks, w2cs = [], [], []
+        for camera, mask in zip(cameras, masks):
+            small = camera.scaled(max(1, camera.width // downscale), max(1, camera.height // downscale))
+            small_mask = None if mask is None else any_in_block(mask, small.width, small.height)
+            depths.append(torch.from_numpy(hull_depth(grid, small, small_mask)) if mask is not None
+                          else torch.full((small.height, small.width), torch.inf))
+            Ks.append(torch.from_numpy(small.K))
+            w2cs.append(torch.from_numpy(small.w2c))
+        shapes = {tuple(d.shape) for d in depths}
+        if len(shapes) > 1:  # views of different sizes: pad to the largest (inf: nothing hides)
+            h, w = max(s[0] for s in shapes), max(s[1] for s in shapes)
+            depths = [torch.nn.functional.pad(d, (0, w - d.shape[1], 0, h - d.shape[0]), value=torch.inf)
+                      for d in depths]
+        return cls(torch.stack(depths).to(device), torch.stack(Ks).to(device), torch.stack(w2cs).to(device),
+                   margin_cells * grid.cell, min_views)
+
+    def __len__(self) -> int:
+        return int(self.depths.shape[0])
+
+    def hidden(self, means: torch.Tensor) -> torch.Tensor:
+        """(V, N) bool: primitive n (centre `means` (N, 3)) is hidden from view v: it lies more
+        than the margin behind the hull's depth at all four depth pixels around its projection
+        (the largest of them: a pixel's depth on a slanted face varies across it). A primitive
+        seen by fewer than `min_views` of the views it projects into is hidden from none."""
+        with torch.no_grad():
+            points = means.detach().to(self.w2c.dtype)
+            cam = torch.einsum("vij,nj->vni", self.w2c[:, :3, :3], points) + self.w2c[:, None, :3, 3]
+            z = cam[..., 2]
+            safe = torch.where(z > 0, z, torch.ones_like(z))
+            uv = torch.einsum("vij,vnj->vni", self.K[:, :2, :2], cam[..., :2] / safe[..., None]) \
+                + self.K[:, None, :2, 2]
+            uv = torch.nan_to_num(uv, nan=-2.0, posinf=-2.0, neginf=-2.0).clamp(-2.0, 1e6)
+            height, width = self.depths.shape[1:]
+            left, top = torch.floor(uv[..., 0]).long(), torch.floor(uv[..., 1]).long()
+            inside = (z > 0) & (left >= 0) & (left + 1 < width) & (top >= 0) & (top + 1 < height)
+            depths = self.depths.reshape(len(self), -1)
+            front = torch.full_like(z, -torch.inf)
+            for dy in (0, 1):
+                for dx in (0, 1):
+                    flat = (top + dy).clamp(0, height - 1) * width + (left + dx).clamp(0, width - 1)
+                    front = torch.maximum(front, torch.gather(depths, 1, flat).to(z.dtype))
+            hidden = inside & (z > front + self.margin)
+            seen = (inside & ~hidden).sum(dim=0)
+            return hidden & (seen >= self.min_views)[None, :]
+
+    def drawn(self, means: torch.Tensor) -> torch.Tensor:
+        """(V, N) float32: 1 where primitive n is drawn in view v, 0 where it is hidden."""
+        return (~self.hidden(means)).float()
+
+
+def hide(logits: torch.Tensor, hidden: torch.Tensor) -> torch.Tensor:
+    """(N,) opacity `logits` with those of the `hidden` (N,) bool primitives at `HIDDEN_LOGIT`
+    (differentiable in the others)."""
+    return torch.where(hidden, torch.full_like(logits, HIDDEN_LOGIT), logits)
+
+
+def scene_occlusion(scene: Scene, model: ModelSettings, side: float | None,
+                    device: torch.device) -> Occlusion:
+    """The `Occlusion` of `scene`'s masks over its cube (`edgedog.init.scene_cube` of `side`), as
+    the `model.occlusion_*` settings say.
+
+    Raises:
+        ConfigError when the scene has no masks.
+    """
+    masks = [scene.load_mask(i) for i in range(len(scene))]
+    if all(mask is None for mask in masks):
+        raise ConfigError(f"model.occlusion='hull' needs object masks (mask files or RGBA images), "
+                          f"and the scene {scene.root} has none")
+    center, side = scene_cube(scene, side)
+    return Occlusion.from_masks(scene.cameras, masks, center, side, model.occlusion_cells,
+                                model.occlusion_margin, model.occlusion_min_views,
+                                model.occlusion_downscale, device)

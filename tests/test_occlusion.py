@@ -1,0 +1,129 @@
+"""Occlusion by the visual hull (model.occlusion='hull'): the hull of a box's silhouettes, its
+depth in a view, which views a point on a face is hidden from, the fallback for points inside,
+and a run with it (finite, resumable, refused without masks)."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import cv2
+import numpy as np
+import pytest
+import torch
+
+from edgedog.errors import ConfigError
+from edgedog.synthetic.cameras import TARGET, orbit_cameras
+from edgedog.train.occlusion import HIDDEN_LOGIT, Occlusion, carve, hide, hull_depth
+from edgedog.train.trainer import Trainer
+from tests.helpers.tiny_runs import every_fifth_view, tiny_config
+
+SIZE = 200
+CAMERAS = orbit_cameras(40, SIZE)
+LOW, HIGH = np.array([0.1, 0.1, 0.2]), np.array([0.9, 0.9, 0.8])
+"""The box's lowest and highest corners."""
+CELLS = 48
+SIDE = 1.1
+CELL = SIDE / CELLS
+
+
+def silhouette(camera) -> np.ndarray:
+    """(H, W) bool mask of the box's silhouette."""
+    corners = np.array([[x, y, z] for x in (LOW[0], HIGH[0]) for y in (LOW[1], HIGH[1])
+                        for z in (LOW[2], HIGH[2])])
+    uv, _ = camera.project(corners)
+    mask = np.zeros((camera.height, camera.width), np.uint8)
+    cv2.fillConvexPoly(mask, cv2.convexHull(np.rint(uv).astype(np.int32)), 1)
+    return mask > 0
+
+
+MASKS = [silhouette(c) for c in CAMERAS]
+
+
+@pytest.fixture(scope="module")
+def occlusion() -> Occlusion:
+    return Occlusion.from_masks(CAMERAS, MASKS, TARGET, SIDE, CELLS, margin_cells=3.0, min_views=4,
+                                downscale=2, device=torch.device("cpu"))
+
+
+def cell_centres() -> np.ndarray:
+    steps = (np.arange(CELLS) + 0.5) * CELL
+    origin = TARGET - SIDE / 2
+    return np.stack(np.meshgrid(steps, steps, steps, indexing="ij"), axis=-1) + origin
+
+
+def test_the_hull_holds_the_box_and_little_else():
+    grid = carve(CAMERAS, MASKS, TARGET, SIDE, CELLS)
+    occupied = grid.occupied.numpy()
+    centres = cell_centres()
+    inside = np.all((centres >= LOW) & (centres <= HIGH), axis=-1)
+    assert occupied[inside].all()
+    far = np.any((centres < LOW - 2 * CELL) | (centres > HIGH + 2 * CELL), axis=-1)
+    assert occupied[far].mean() < 0.01
+
+
+def test_a_view_without_a_mask_carves_nothing():
+    grid = carve(CAMERAS[:1], [None], TARGET, SIDE, 8)
+    assert grid.occupied.all()
+
+
+def test_the_hull_depth_is_the_box_face_in_front():
+    grid = carve(CAMERAS, MASKS, TARGET, SIDE, CELLS)
+    top = max(CAMERAS, key=lambda c: c.center[2])  # the view nearest +Z sees the top face
+    depth = hull_depth(grid, top, None)
+    uv, z = top.project(np.array([[0.5, 0.5, HIGH[2]]]))
+    u, v = np.rint(uv[0]).astype(int)
+    assert abs(depth[v, u] - z[0]) < 2 * CELL
+    corner_uv, _ = top.project(np.array([[-0.3, -0.3, 0.5]]))  # beside the box: the ray misses it
+    assert np.isinf(depth[int(round(corner_uv[0, 1])), int(round(corner_uv[0, 0]))])
+
+
+def test_a_point_on_the_top_face_is_hidden_from_below_and_seen_from_above(occlusion):
+    hidden = occlusion.hidden(torch.tensor([[0.5, 0.5, HIGH[2]], [0.5, 0.5, LOW[2]]]))
+    heights = np.array([c.center[2] for c in CAMERAS]) - TARGET[2]
+    below, above = heights < -1.0, heights > 1.0
+    assert below.any() and above.any()
+    top, bottom = hidden[:, 0].numpy(), hidden[:, 1].numpy()
+    assert top[below].all() and not top[above].any()
+    assert bottom[above].all() and not bottom[below].any()
+
+
+def test_a_point_inside_the_hull_is_drawn_in_every_view(occlusion):
+    assert not occlusion.hidden(torch.tensor([[0.5, 0.5, 0.5]])).any()
+    assert occlusion.drawn(torch.tensor([[0.5, 0.5, 0.5]])).eq(1).all()
+
+
+def test_points_behind_the_cameras_or_far_off_are_never_hidden(occlusion):
+    far = torch.tensor([[50.0, 50.0, 50.0], [-80.0, 3.0, 0.5]])
+    assert not occlusion.hidden(far).any()
+
+
+def test_hide_sets_only_the_hidden_logits_and_keeps_the_others_gradients():
+    logits = torch.tensor([0.5, -1.0, 2.0], requires_grad=True)
+    shown = hide(logits, torch.tensor([False, True, False]))
+    assert shown[1].item() == HIDDEN_LOGIT
+    shown.sum().backward()
+    assert logits.grad.tolist() == [1.0, 0.0, 1.0]
+
+
+def test_a_run_with_occlusion_trains_finite_and_resumes(builtin_scene_dir, tmp_path):
+    scene = every_fifth_view(builtin_scene_dir)
+    config = tiny_config(occlusion="hull", occlusion_cells=32, epochs=2, checkpoint_every=1,
+                         fisher_every=1, cull_projection_epochs=(0,))
+    trainer = Trainer(scene, config, tmp_path / "run", progress=False)
+    assert trainer.occlusion is not None and len(trainer.occlusion) == len(scene)
+    while trainer.epoch < 1:
+        trainer.step()
+    for tensor in trainer.model.tensors().values():
+        assert torch.isfinite(tensor).all()
+    assert trainer._hidden is not None and trainer._hidden.shape[0] == len(scene)
+    events = {e["event"] for e in trainer.events}
+    assert {"cull_projection", "fisher_prune"} <= events
+    resumed = Trainer(scene, config, tmp_path / "run", progress=False)
+    assert resumed.epoch == 1 and len(resumed.model) == len(trainer.model)
+
+
+def test_a_scene_without_masks_is_refused(builtin_scene_dir, tmp_path):
+    scene = every_fifth_view(builtin_scene_dir)
+    scene.views = [dataclasses.replace(v, alpha=False, mask_path=None) for v in scene.views]
+    with pytest.raises(ConfigError, match="needs object masks"):
+        Trainer(scene, tiny_config(occlusion="hull"), tmp_path / "run", progress=False)
