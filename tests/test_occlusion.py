@@ -5,6 +5,7 @@ and a run with it (finite, resumable, refused without masks)."""
 from __future__ import annotations
 
 import dataclasses
+import json
 
 import cv2
 import numpy as np
@@ -120,6 +121,11 @@ def test_a_run_with_occlusion_trains_finite_and_resumes(builtin_scene_dir, tmp_p
     assert {"cull_projection", "fisher_prune"} <= events
     resumed = Trainer(scene, config, tmp_path / "run", progress=False)
     assert resumed.epoch == 1 and len(resumed.model) == len(trainer.model)
+    while not resumed.done:
+        resumed.step()
+    resumed.write_outputs()
+    logged = json.loads((tmp_path / "run" / "log.json").read_text())["occlusion"]
+    assert logged["views_with_mask"] == len(scene) and 0 < logged["hull_share"] < 1
 
 
 def test_a_scene_without_masks_is_refused(builtin_scene_dir, tmp_path):
@@ -127,3 +133,29 @@ def test_a_scene_without_masks_is_refused(builtin_scene_dir, tmp_path):
     scene.views = [dataclasses.replace(v, alpha=False, mask_path=None) for v in scene.views]
     with pytest.raises(ConfigError, match="needs object masks"):
         Trainer(scene, tiny_config(occlusion="hull"), tmp_path / "run", progress=False)
+
+
+def test_auto_occludes_where_the_scene_has_masks_and_trains_without_where_not(builtin_scene_dir, tmp_path):
+    scene = every_fifth_view(builtin_scene_dir)
+    with_masks = Trainer(scene, tiny_config(occlusion="auto", occlusion_cells=16), tmp_path / "a", progress=False)
+    assert with_masks.occlusion is not None
+    assert with_masks.occlusion.report["views_with_mask"] == len(scene)
+    scene.views = [dataclasses.replace(v, alpha=False, mask_path=None) for v in scene.views]
+    without = Trainer(scene, tiny_config(occlusion="auto"), tmp_path / "b", progress=False)
+    assert without.occlusion is None
+
+
+def test_views_projected_in_chunks_give_the_same_answer(occlusion, monkeypatch):
+    points = torch.rand(50, 3) * 1.2 - 0.1
+    whole = occlusion.hidden(points)
+    monkeypatch.setattr("edgedog.train.occlusion.PROJECTED_AT_ONCE", 120)  # two views at a time
+    assert torch.equal(occlusion.hidden(points), whole)
+    assert whole.any() and not whole.all()
+
+
+def test_rays_marched_in_chunks_give_the_same_depths(monkeypatch):
+    grid = carve(CAMERAS, MASKS, TARGET, SIDE, 24)
+    whole = hull_depth(grid, CAMERAS[3], MASKS[3])
+    monkeypatch.setattr("edgedog.train.occlusion.RAY_CHUNK", 1000)
+    assert np.array_equal(hull_depth(grid, CAMERAS[3], MASKS[3]), whole)
+    assert np.isfinite(whole).any()

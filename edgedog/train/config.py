@@ -104,7 +104,7 @@ EdgeProfile = Literal["auto", "raw", "thin", "profile"]
 MapCorrection = Literal["none", "calibrated", "shift", "learned"]
 SilhouetteCorrection = Literal["auto", "measured", "none"]
 StopMode = Literal["off", "run", "coarse", "both"]
-Occlusion = Literal["off", "hull"]
+Occlusion = Literal["off", "hull", "auto"]
 """What convergence ends (see `ScheduleSettings.stop`)."""
 
 
@@ -174,7 +174,8 @@ class ModelSettings(Settings):
     scene's masks, stands in front of it by more than `occlusion_margin` cells
     (edgedog.train.occlusion), so that the views a wall hides an edge from do not penalise its
     primitive, and density control counts only the views that see it. Needs masks (mask files
-    or RGBA images). 'off': every primitive is drawn in every view (the paper's model)."""
+    or RGBA images). 'auto': 'hull' when the scene has masks, else 'off'. 'off': every primitive
+    is drawn in every view (the paper's model)."""
     occlusion_cells: Annotated[int, Range(16, MAX_HULL_CELLS)] = 128
     """Cells per side of the visual hull's grid over the scene's cube (`init.side`)."""
     occlusion_margin: Annotated[float, Range(0, MAX_HULL_CELLS)] = 3.0

@@ -25,7 +25,7 @@ import cv2
 import numpy as np
 import torch
 
-from edgedog.errors import ConfigError
+from edgedog.errors import ConfigError, InputError
 from edgedog.init import scene_cube
 from edgedog.scenes.camera import Camera
 from edgedog.scenes.scene import Scene
@@ -36,6 +36,10 @@ HIDDEN_LOGIT = -40.0
 """The opacity logit of a primitive in a view that does not see it: sigmoid is about 4e-18."""
 RAY_BLOCK = 32
 """Samples marched at once along every ray still looking for the hull."""
+RAY_CHUNK = 65536
+"""Rays marched at once: a block of them is (RAY_CHUNK, RAY_BLOCK, 3) float64, 50 MB."""
+PROJECTED_AT_ONCE = 4_000_000
+"""Primitive-view pairs projected at once by `Occlusion.hidden` ((pairs, 3) float64, 96 MB)."""
 
 
 @dataclass(frozen=True)
@@ -128,23 +132,33 @@ def hull_depth(grid: HullGrid, camera: Camera, mask: np.ndarray | None) -> np.nd
                             low + grid.resolution * grid.cell)
     step = 0.5 * grid.cell / np.linalg.norm(directions, axis=1)
     alive = np.flatnonzero(entry < leave)
-    t = torch.from_numpy(entry[alive])
-    dirs, steps = torch.from_numpy(directions[alive]), torch.from_numpy(step[alive])
-    ends = torch.from_numpy(leave[alive])
     origin = torch.from_numpy(camera.center.astype(np.float64))
+    for start in range(0, len(alive), RAY_CHUNK):
+        rays = alive[start:start + RAY_CHUNK]
+        found = first_hits(grid, origin, torch.from_numpy(directions[rays]), torch.from_numpy(entry[rays]),
+                           torch.from_numpy(leave[rays]), torch.from_numpy(step[rays]))
+        depth[rows[rays], cols[rays]] = found.numpy().astype(np.float32)
+    return depth
+
+
+def first_hits(grid: HullGrid, origin: torch.Tensor, directions: torch.Tensor, entry: torch.Tensor,
+               leave: torch.Tensor, step: torch.Tensor) -> torch.Tensor:
+    """(M,) float64 parameter t of the first occupied sample along each ray `origin` (3,) + t
+    `directions` (M, 3), sampled every `step` (M,) from `entry` to `leave` (M,); inf where
+    none is."""
+    t = entry.clone()
     ahead = torch.arange(RAY_BLOCK, dtype=torch.float64)
-    found = torch.full((len(alive),), np.inf, dtype=torch.float64)
-    live = torch.arange(len(alive))
+    found = torch.full((len(t),), torch.inf, dtype=torch.float64)
+    live = torch.arange(len(t))
     while len(live):
-        ts = t[live, None] + steps[live, None] * ahead  # (M, B)
-        hit = grid.lookup(origin + dirs[live, None, :] * ts[..., None]) & (ts <= ends[live, None])
+        ts = t[live, None] + step[live, None] * ahead  # (M, B)
+        hit = grid.lookup(origin + directions[live, None, :] * ts[..., None]) & (ts <= leave[live, None])
         any_hit = hit.any(dim=1)
         first = torch.argmax(hit.to(torch.uint8), dim=1)
         found[live[any_hit]] = ts[any_hit, first[any_hit]]
-        t[live] = ts[:, -1] + steps[live]
-        live = live[~any_hit & (t[live] <= ends[live])]
-    depth[rows[alive], cols[alive]] = found.numpy().astype(np.float32)
-    return depth
+        t[live] = ts[:, -1] + step[live]
+        live = live[~any_hit & (t[live] <= leave[live])]
+    return found
 
 
 class Occlusion:
@@ -155,12 +169,14 @@ class Occlusion:
         K: (V, 3, 3), w2c: (V, 4, 4) float64 the views' cameras at that resolution.
         margin: world units a primitive must lie behind the hull's depth to be hidden.
         min_views: a primitive seen by fewer of the views it projects into is drawn in all.
+        report: what log.json records of the hull (views with a mask, cells, the share occupied).
     """
 
     def __init__(self, depths: torch.Tensor, K: torch.Tensor, w2c: torch.Tensor, margin: float,
-                 min_views: int):
+                 min_views: int, report: dict | None = None):
         self.depths, self.K, self.w2c = depths, K, w2c
         self.margin, self.min_views = float(margin), int(min_views)
+        self.report = report or {}
 
     @classmethod
     def from_masks(cls, cameras: list[Camera], masks: list[np.ndarray | None], center: np.ndarray,
@@ -183,8 +199,10 @@ class Occlusion:
             h, w = max(s[0] for s in shapes), max(s[1] for s in shapes)
             depths = [torch.nn.functional.pad(d, (0, w - d.shape[1], 0, h - d.shape[0]), value=torch.inf)
                       for d in depths]
+        report = {"views_with_mask": sum(mask is not None for mask in masks), "cells": resolution,
+                  "cell": round(grid.cell, 6), "hull_share": round(float(grid.occupied.float().mean()), 4)}
         return cls(torch.stack(depths).to(device), torch.stack(Ks).to(device), torch.stack(w2cs).to(device),
-                   margin_cells * grid.cell, min_views)
+                   margin_cells * grid.cell, min_views, report)
 
     def __len__(self) -> int:
         return int(self.depths.shape[0])
@@ -196,28 +214,47 @@ class Occlusion:
         seen by fewer than `min_views` of the views it projects into is hidden from none."""
         with torch.no_grad():
             points = means.detach().to(self.w2c.dtype)
-            cam = torch.einsum("vij,nj->vni", self.w2c[:, :3, :3], points) + self.w2c[:, None, :3, 3]
-            z = cam[..., 2]
-            safe = torch.where(z > 0, z, torch.ones_like(z))
-            uv = torch.einsum("vij,vnj->vni", self.K[:, :2, :2], cam[..., :2] / safe[..., None]) \
-                + self.K[:, None, :2, 2]
-            uv = torch.nan_to_num(uv, nan=-2.0, posinf=-2.0, neginf=-2.0).clamp(-2.0, 1e6)
-            height, width = self.depths.shape[1:]
-            left, top = torch.floor(uv[..., 0]).long(), torch.floor(uv[..., 1]).long()
-            inside = (z > 0) & (left >= 0) & (left + 1 < width) & (top >= 0) & (top + 1 < height)
-            depths = self.depths.reshape(len(self), -1)
-            front = torch.full_like(z, -torch.inf)
-            for dy in (0, 1):
-                for dx in (0, 1):
-                    flat = (top + dy).clamp(0, height - 1) * width + (left + dx).clamp(0, width - 1)
-                    front = torch.maximum(front, torch.gather(depths, 1, flat).to(z.dtype))
-            hidden = inside & (z > front + self.margin)
+            views = max(1, PROJECTED_AT_ONCE // max(1, len(points)))
+            parts = [self._behind(points, first, min(first + views, len(self)))
+                     for first in range(0, len(self), views)]
+            inside = (torch.cat([p[0] for p in parts]) if parts
+                      else torch.zeros(0, len(points), dtype=torch.bool, device=points.device))
+            hidden = torch.cat([p[1] for p in parts]) if parts else inside
             seen = (inside & ~hidden).sum(dim=0)
             return hidden & (seen >= self.min_views)[None, :]
+
+    def _behind(self, points: torch.Tensor, first: int, last: int) -> tuple[torch.Tensor, torch.Tensor]:
+        """For views first..last-1 and the (N, 3) `points`: (V', N) bool whether each projects
+        into the view's depth map, and whether it lies more than the margin behind the largest
+        of the four depths around its projection."""
+        w2c, K, depths = self.w2c[first:last], self.K[first:last], self.depths[first:last]
+        cam = torch.einsum("vij,nj->vni", w2c[:, :3, :3], points) + w2c[:, None, :3, 3]
+        z = cam[..., 2]
+        safe = torch.where(z > 0, z, torch.ones_like(z))
+        uv = torch.einsum("vij,vnj->vni", K[:, :2, :2], cam[..., :2] / safe[..., None]) + K[:, None, :2, 2]
+        uv = torch.nan_to_num(uv, nan=-2.0, posinf=-2.0, neginf=-2.0).clamp(-2.0, 1e6)
+        height, width = depths.shape[1:]
+        left, top = torch.floor(uv[..., 0]).long(), torch.floor(uv[..., 1]).long()
+        inside = (z > 0) & (left >= 0) & (left + 1 < width) & (top >= 0) & (top + 1 < height)
+        flat_depths = depths.reshape(last - first, -1)
+        front = torch.full_like(z, -torch.inf)
+        for dy in (0, 1):
+            for dx in (0, 1):
+                flat = (top + dy).clamp(0, height - 1) * width + (left + dx).clamp(0, width - 1)
+                front = torch.maximum(front, torch.gather(flat_depths, 1, flat).to(z.dtype))
+        return inside, inside & (z > front + self.margin)
 
     def drawn(self, means: torch.Tensor) -> torch.Tensor:
         """(V, N) float32: 1 where primitive n is drawn in view v, 0 where it is hidden."""
         return (~self.hidden(means)).float()
+
+
+def readable_mask(scene: Scene, index: int) -> np.ndarray | None:
+    """(H, W) bool mask of view `index`, None when it has none or it cannot be read."""
+    try:
+        return scene.load_mask(index)
+    except InputError:
+        return None
 
 
 def hide(logits: torch.Tensor, hidden: torch.Tensor) -> torch.Tensor:
@@ -227,17 +264,20 @@ def hide(logits: torch.Tensor, hidden: torch.Tensor) -> torch.Tensor:
 
 
 def scene_occlusion(scene: Scene, model: ModelSettings, side: float | None,
-                    device: torch.device) -> Occlusion:
+                    device: torch.device) -> Occlusion | None:
     """The `Occlusion` of `scene`'s masks over its cube (`edgedog.init.scene_cube` of `side`), as
-    the `model.occlusion_*` settings say.
+    the `model.occlusion_*` settings say; None when `model.occlusion` is 'off', or 'auto' and the
+    scene has no masks. A view whose mask cannot be read carves nothing and hides nothing.
 
     Raises:
-        ConfigError when the scene has no masks.
+        ConfigError when `model.occlusion` is 'hull' and no view's mask can be read.
     """
-    masks = [scene.load_mask(i) for i in range(len(scene))]
+    if model.occlusion == "off" or (model.occlusion == "auto" and not scene.masked_views):
+        return None
+    masks = [readable_mask(scene, i) for i in range(len(scene))]
     if all(mask is None for mask in masks):
         raise ConfigError(f"model.occlusion='hull' needs object masks (mask files or RGBA images), "
-                          f"and the scene {scene.root} has none")
+                          f"and the scene {scene.root} has none that can be read")
     center, side = scene_cube(scene, side)
     return Occlusion.from_masks(scene.cameras, masks, center, side, model.occlusion_cells,
                                 model.occlusion_margin, model.occlusion_min_views,

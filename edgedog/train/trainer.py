@@ -207,8 +207,7 @@ class Trainer:
         self.centres = camera_centres(self.cameras, self.device) if config.model.view_opacity else None
         # The visual hull's depth in each view (model.occlusion), and the (V, N) primitives it hides
         # from each view, found at each epoch's start (the centres move little within an epoch).
-        self.occlusion = (scene_occlusion(scene, config.model, config.init.side, self.device)
-                          if config.model.occlusion == "hull" else None)
+        self.occlusion = scene_occlusion(scene, config.model, config.init.side, self.device)
         self._hidden: torch.Tensor | None = None
         self.learned_shift = (LearnedShift(config, self.device) if config.maps.correction == "learned"
                               else None)
@@ -557,6 +556,7 @@ class Trainer:
             "final_primitives": len(self.model), "lower_primitives": len(self.lower),
             "map_shift_px": self.shift_px(),
             "silhouette_correction": self.silhouette,
+            "occlusion": None if self.occlusion is None else self.occlusion.report,
             "train_seconds": round(self.seconds, 2), "device": device_name(self.device),
             "peak_rss_mib": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1),
             "peak_gpu_mib": (round(torch.cuda.max_memory_allocated(self.device) / 2**20, 1)
