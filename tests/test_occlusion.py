@@ -137,7 +137,8 @@ def test_a_scene_without_masks_is_refused(builtin_scene_dir, tmp_path):
 
 def test_auto_occludes_where_the_scene_has_masks_and_trains_without_where_not(builtin_scene_dir, tmp_path):
     scene = every_fifth_view(builtin_scene_dir)
-    with_masks = Trainer(scene, tiny_config(occlusion="auto", occlusion_cells=16), tmp_path / "a", progress=False)
+    with_masks = Trainer(scene, tiny_config(occlusion="auto", occlusion_cells=16), tmp_path / "a",
+                         progress=False)
     assert with_masks.occlusion is not None
     assert with_masks.occlusion.report["views_with_mask"] == len(scene)
     scene.views = [dataclasses.replace(v, alpha=False, mask_path=None) for v in scene.views]
@@ -159,3 +160,36 @@ def test_rays_marched_in_chunks_give_the_same_depths(monkeypatch):
     monkeypatch.setattr("edgedog.train.occlusion.RAY_CHUNK", 1000)
     assert np.array_equal(hull_depth(grid, CAMERAS[3], MASKS[3]), whole)
     assert np.isfinite(whole).any()
+
+
+def test_a_point_off_the_hull_is_outside_and_points_on_or_in_it_are_not(occlusion):
+    points = torch.tensor([[0.5, 0.5, 0.5], [0.5, 0.5, HIGH[2]], [HIGH[0], HIGH[1], HIGH[2]],
+                           [0.5, 0.5, HIGH[2] + 0.2], [0.5, 0.5, 40.0], [float("nan"), 0.0, 0.0]])
+    assert occlusion.outside(points).tolist() == [False, False, False, True, True, True]
+
+
+def test_the_projection_cull_also_removes_what_lies_outside_the_hull(occlusion):
+    from edgedog.renderer.config import RasterConfig
+
+    from edgedog.init.points import InitialPoints
+    from edgedog.train.model import EdgeModel
+    from edgedog.train.optim import Optimizers
+    from edgedog.train.strategy import DensityStrategy
+
+    config = tiny_config(cull_projection_epochs=(0,), cull_projection_below=0.0)
+    points = InitialPoints(np.array([[0.5, 0.5, HIGH[2]], [0.5, 0.5, HIGH[2] + 0.3]]), np.full(2, 0.01),
+                           "uniform", {})
+    model = EdgeModel.from_points(points, 0.1, 0.0, torch.Generator().manual_seed(0))
+    strategy = DensityStrategy(config, RasterConfig(), occlusion)
+    optimizers = Optimizers(model, config)
+    state = strategy.initial_state(len(model), model.device)
+
+    class Views:  # the projection cull reads the pinholes and edge masks only
+        pinholes = CAMERAS[:2]
+        cameras = []
+        edge_masks = [torch.ones(SIZE, SIZE, dtype=torch.bool)] * 2
+
+    events = strategy.at_epoch_end(0, model, optimizers, state, Views(), torch.Generator(), 1.0)
+    assert [e["event"] for e in events] == ["cull_projection", "cull_hull"]
+    assert events[1]["before"] == 2 and events[1]["after"] == 1
+    assert torch.allclose(model.means[0], torch.tensor([0.5, 0.5, HIGH[2]], dtype=model.means.dtype))

@@ -314,7 +314,8 @@ class StrategySettings(Settings):
     cull_opacity_below: Share = 0.05
     """Cull primitives whose opacity is below this."""
     cull_projection_epochs: tuple[Epoch, ...] = (145, 175, 190)
-    """Epochs after which the primitives off the edges are culled."""
+    """Epochs after which the primitives off the edges are culled (with `model.occlusion`, also
+    those farther outside the visual hull than `model.occlusion_margin`)."""
     cull_projection_below: Share = 0.1
     """Cull primitives whose centre lands on edge pixels in fewer than this share of the views
     that see it."""

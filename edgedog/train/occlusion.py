@@ -10,11 +10,14 @@ in that view when it lies more than `model.occlusion_margin` cells behind that d
 
 A cell is kept when its centre projects inside every mask, so the hull's surface lies within
 half a cell of the object's where the masks are tight: a point of the surface that a view sees
-is not hidden by the hull unless the view grazes the surface; the margin absorbs the cells' size. Where the masks leave the hull
-larger than the object (a pocket that no silhouette shows), its edges lie inside the hull and
-would be hidden from every view: a primitive hidden from all but fewer than
-`model.occlusion_min_views` of the views it projects into is drawn in every view, as without
-occlusion.
+is not hidden by the hull unless the view grazes the surface; the margin absorbs the cells'
+size. Where the masks leave the hull larger than the object (a pocket that no silhouette
+shows), its edges lie inside the hull and would be hidden from every view: a primitive hidden
+from all but fewer than `model.occlusion_min_views` of the views it projects into is drawn in
+every view, as without occlusion.
+
+The hull also bounds where an edge can be: a primitive farther outside it than the margin is
+off the object, and the projection cull removes it (`Occlusion.outside`).
 """
 
 from __future__ import annotations
@@ -24,6 +27,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 import torch
+from scipy.ndimage import distance_transform_edt
 
 from edgedog.errors import ConfigError, InputError
 from edgedog.init import scene_cube
@@ -169,13 +173,17 @@ class Occlusion:
         K: (V, 3, 3), w2c: (V, 4, 4) float64 the views' cameras at that resolution.
         margin: world units a primitive must lie behind the hull's depth to be hidden.
         min_views: a primitive seen by fewer of the views it projects into is drawn in all.
+        clearance: the hull's grid with, in `occupied`'s place, (R, R, R) float32 world
+            distance from each cell's centre to the nearest occupied cell's (0 inside); None:
+            unknown (nothing is outside).
         report: what log.json records of the hull (views with a mask, cells, the share occupied).
     """
 
     def __init__(self, depths: torch.Tensor, K: torch.Tensor, w2c: torch.Tensor, margin: float,
-                 min_views: int, report: dict | None = None):
+                 min_views: int, clearance: HullGrid | None = None, report: dict | None = None):
         self.depths, self.K, self.w2c = depths, K, w2c
         self.margin, self.min_views = float(margin), int(min_views)
+        self.clearance = clearance
         self.report = report or {}
 
     @classmethod
@@ -201,8 +209,10 @@ class Occlusion:
                       for d in depths]
         report = {"views_with_mask": sum(mask is not None for mask in masks), "cells": resolution,
                   "cell": round(grid.cell, 6), "hull_share": round(float(grid.occupied.float().mean()), 4)}
+        clearance = HullGrid(torch.from_numpy((distance_transform_edt(~grid.occupied.numpy()) * grid.cell)
+                                              .astype(np.float32)).to(device), grid.origin, grid.cell)
         return cls(torch.stack(depths).to(device), torch.stack(Ks).to(device), torch.stack(w2cs).to(device),
-                   margin_cells * grid.cell, min_views, report)
+                   margin_cells * grid.cell, min_views, clearance, report)
 
     def __len__(self) -> int:
         return int(self.depths.shape[0])
@@ -243,6 +253,23 @@ class Occlusion:
                 flat = (top + dy).clamp(0, height - 1) * width + (left + dx).clamp(0, width - 1)
                 front = torch.maximum(front, torch.gather(flat_depths, 1, flat).to(z.dtype))
         return inside, inside & (z > front + self.margin)
+
+    def outside(self, means: torch.Tensor) -> torch.Tensor:
+        """(N,) bool: the centre `means` (N, 3) lies farther outside the hull than the margin
+        (beyond the grid's cube, its distance to the cube is added to that of the cube's
+        nearest cell)."""
+        if self.clearance is None:
+            return torch.zeros(len(means), dtype=torch.bool, device=means.device)
+        with torch.no_grad():
+            grid = self.clearance
+            points = means.detach().double()
+            low = torch.as_tensor(grid.origin, dtype=torch.float64, device=points.device)
+            high = low + grid.resolution * grid.cell
+            nearest = torch.minimum(torch.maximum(points, low), high)
+            beyond = (points - nearest).norm(dim=1)
+            index = torch.floor((nearest - low) / grid.cell).long().clamp(0, grid.resolution - 1)
+            inside_distance = grid.occupied.to(points.device)[index[:, 0], index[:, 1], index[:, 2]].double()
+            return torch.nan_to_num(inside_distance + beyond, nan=torch.inf) > self.margin
 
     def drawn(self, means: torch.Tensor) -> torch.Tensor:
         """(V, N) float32: 1 where primitive n is drawn in view v, 0 where it is hidden."""

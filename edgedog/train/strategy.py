@@ -20,7 +20,6 @@ from edgedog.train.resolution import ViewSet
 from edgedog.train.spacing import edge_directions, redundant, spacing_length, split_offsets, split_pieces
 from edgedog.train.view_opacity import camera_centres, largest_logits, relative_opacity, seen_from
 
-
 MIN_DRAWN = 1e-6
 """The Fisher scores' divisor (how much the views draw a primitive) is at least this."""
 
@@ -96,6 +95,9 @@ class DensityStrategy:
         if epoch in c.cull_projection_epochs:
             events.append(self._cull(model, optimizers, state, "projection",
                                      self._edge_hit_share(model, views) < c.cull_projection_below, views))
+            if self.occlusion is not None:  # off the object: outside its visual hull
+                outside = self.occlusion.outside(model.means)
+                events.append(self._cull(model, optimizers, state, "hull", outside, views))
         if epoch in c.cull_opacity_epochs:
             opacity = torch.sigmoid(self._largest_logits(model, views))
             events.append(self._cull(model, optimizers, state, "opacity", opacity < c.cull_opacity_below,
@@ -244,7 +246,8 @@ class DensityStrategy:
                 if centres is not None:
                     primitives = seen_from(primitives, model.opacity_dirs, centres[view])
                 if hidden is not None:
-                    primitives = replace(primitives, opacity_logits=hide(primitives.opacity_logits, hidden[view]))
+                    primitives = replace(primitives,
+                                         opacity_logits=hide(primitives.opacity_logits, hidden[view]))
                 scores += fisher_information(primitives, [camera], self.raster)
             return scores / weights.sum(0).clamp_min(MIN_DRAWN)
 
