@@ -173,17 +173,18 @@ class Occlusion:
         K: (V, 3, 3), w2c: (V, 4, 4) float64 the views' cameras at that resolution.
         margin: world units a primitive must lie behind the hull's depth to be hidden.
         min_views: a primitive seen by fewer of the views it projects into is drawn in all.
-        clearance: the hull's grid with, in `occupied`'s place, (R, R, R) float32 world
-            distance from each cell's centre to the nearest occupied cell's (0 inside); None:
-            unknown (nothing is outside).
+        hull: the visual hull's grid; None: unknown (nothing is outside).
+        clearance: (R, R, R) float32 world distance from each cell of `hull` to its nearest
+            occupied cell, centre to centre (0 inside).
         report: what log.json records of the hull (views with a mask, cells, the share occupied).
     """
 
     def __init__(self, depths: torch.Tensor, K: torch.Tensor, w2c: torch.Tensor, margin: float,
-                 min_views: int, clearance: HullGrid | None = None, report: dict | None = None):
+                 min_views: int, hull: HullGrid | None = None, clearance: torch.Tensor | None = None,
+                 report: dict | None = None):
         self.depths, self.K, self.w2c = depths, K, w2c
         self.margin, self.min_views = float(margin), int(min_views)
-        self.clearance = clearance
+        self.hull, self.clearance = hull, clearance
         self.report = report or {}
 
     @classmethod
@@ -209,10 +210,10 @@ class Occlusion:
                       for d in depths]
         report = {"views_with_mask": sum(mask is not None for mask in masks), "cells": resolution,
                   "cell": round(grid.cell, 6), "hull_share": round(float(grid.occupied.float().mean()), 4)}
-        clearance = HullGrid(torch.from_numpy((distance_transform_edt(~grid.occupied.numpy()) * grid.cell)
-                                              .astype(np.float32)).to(device), grid.origin, grid.cell)
+        clearance = torch.from_numpy((distance_transform_edt(~grid.occupied.numpy()) * grid.cell)
+                                     .astype(np.float32)).to(device)
         return cls(torch.stack(depths).to(device), torch.stack(Ks).to(device), torch.stack(w2cs).to(device),
-                   margin_cells * grid.cell, min_views, clearance, report)
+                   margin_cells * grid.cell, min_views, grid, clearance, report)
 
     def __len__(self) -> int:
         return int(self.depths.shape[0])
@@ -258,17 +259,17 @@ class Occlusion:
         """(N,) bool: the centre `means` (N, 3) lies farther outside the hull than the margin
         (beyond the grid's cube, its distance to the cube is added to that of the cube's
         nearest cell)."""
-        if self.clearance is None:
+        if self.hull is None or self.clearance is None:
             return torch.zeros(len(means), dtype=torch.bool, device=means.device)
         with torch.no_grad():
-            grid = self.clearance
+            grid = self.hull
             points = means.detach().double()
             low = torch.as_tensor(grid.origin, dtype=torch.float64, device=points.device)
             high = low + grid.resolution * grid.cell
             nearest = torch.minimum(torch.maximum(points, low), high)
             beyond = (points - nearest).norm(dim=1)
             index = torch.floor((nearest - low) / grid.cell).long().clamp(0, grid.resolution - 1)
-            inside_distance = grid.occupied.to(points.device)[index[:, 0], index[:, 1], index[:, 2]].double()
+            inside_distance = self.clearance.to(points.device)[index[:, 0], index[:, 1], index[:, 2]].double()
             return torch.nan_to_num(inside_distance + beyond, nan=torch.inf) > self.margin
 
     def drawn(self, means: torch.Tensor) -> torch.Tensor:
