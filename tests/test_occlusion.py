@@ -93,9 +93,10 @@ def test_a_point_inside_the_hull_is_drawn_in_every_view(occlusion):
     assert occlusion.drawn(torch.tensor([[0.5, 0.5, 0.5]])).eq(1).all()
 
 
-def test_points_behind_the_cameras_or_far_off_are_never_hidden(occlusion):
-    far = torch.tensor([[50.0, 50.0, 50.0], [-80.0, 3.0, 0.5]])
-    assert not occlusion.hidden(far).any()
+def test_points_behind_the_cameras_far_off_or_not_finite_are_never_hidden(occlusion):
+    odd = torch.tensor([[50.0, 50.0, 50.0], [-80.0, 3.0, 0.5], [float("nan"), 0.5, 0.5],
+                        [float("inf"), 0.5, 0.5]])
+    assert not occlusion.hidden(odd).any()
 
 
 def test_hide_sets_only_the_hidden_logits_and_keeps_the_others_gradients():
