@@ -104,8 +104,9 @@ EdgeProfile = Literal["auto", "raw", "thin", "profile"]
 MapCorrection = Literal["none", "calibrated", "shift", "learned"]
 SilhouetteCorrection = Literal["auto", "measured", "none"]
 StopMode = Literal["off", "run", "coarse", "both"]
-Occlusion = Literal["off", "hull", "auto"]
 """What convergence ends (see `ScheduleSettings.stop`)."""
+Occlusion = Literal["off", "hull", "auto"]
+"""Whether the visual hull hides primitives (see `ModelSettings.occlusion`)."""
 
 
 @dataclass(frozen=True)
