@@ -22,6 +22,7 @@ off the object, and the projection cull removes it (`Occlusion.outside`).
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import cv2
@@ -31,6 +32,7 @@ from scipy.ndimage import distance_transform_edt
 
 from edgedog.errors import ConfigError, InputError
 from edgedog.init import scene_cube
+from edgedog.renderer.primitives import Primitives
 from edgedog.scenes.camera import Camera
 from edgedog.scenes.scene import Scene
 from edgedog.train.config import ModelSettings
@@ -64,11 +66,16 @@ class HullGrid:
     def resolution(self) -> int:
         return int(self.occupied.shape[0])
 
+    def index(self, points: torch.Tensor) -> torch.Tensor:
+        """(..., 3) int64 [x, y, z] of the cell each point (..., 3) (float64) lies in, outside
+        [0, R) for a point outside the cube."""
+        origin = torch.as_tensor(self.origin, dtype=points.dtype, device=points.device)
+        return torch.floor((points - origin) / self.cell).long()
+
     def lookup(self, points: torch.Tensor) -> torch.Tensor:
         """(...) bool: whether each point (..., 3) (float64) lies in an occupied cell (False
         outside the cube)."""
-        index = torch.floor((points - torch.as_tensor(self.origin, dtype=points.dtype,
-                                                      device=points.device)) / self.cell).long()
+        index = self.index(points)
         r = self.resolution
         inside = ((index >= 0) & (index < r)).all(dim=-1)
         flat = (index.clamp(0, r - 1) * torch.tensor([r * r, r, 1], device=points.device)).sum(-1)
@@ -173,19 +180,18 @@ class Occlusion:
         K: (V, 3, 3), w2c: (V, 4, 4) float64 the views' cameras at that resolution.
         margin: world units a primitive must lie behind the hull's depth to be hidden.
         min_views: a primitive seen by fewer of the views it projects into is drawn in all.
-        hull: the visual hull's grid; None: unknown (nothing is outside).
+        hull: the visual hull's grid.
         clearance: (R, R, R) float32 world distance from each cell of `hull` to its nearest
             occupied cell, centre to centre (0 inside).
         report: what log.json records of the hull (views with a mask, cells, the share occupied).
     """
 
     def __init__(self, depths: torch.Tensor, K: torch.Tensor, w2c: torch.Tensor, margin: float,
-                 min_views: int, hull: HullGrid | None = None, clearance: torch.Tensor | None = None,
-                 report: dict | None = None):
+                 min_views: int, hull: HullGrid, clearance: torch.Tensor, report: dict):
         self.depths, self.K, self.w2c = depths, K, w2c
         self.margin, self.min_views = float(margin), int(min_views)
         self.hull, self.clearance = hull, clearance
-        self.report = report or {}
+        self.report = report
 
     @classmethod
     def from_masks(cls, cameras: list[Camera], masks: list[np.ndarray | None], center: np.ndarray,
@@ -259,8 +265,6 @@ class Occlusion:
         """(N,) bool: the centre `means` (N, 3) lies farther outside the hull than the margin
         (beyond the grid's cube, its distance to the cube is added to that of the cube's
         nearest cell)."""
-        if self.hull is None or self.clearance is None:
-            return torch.zeros(len(means), dtype=torch.bool, device=means.device)
         with torch.no_grad():
             grid = self.hull
             points = means.detach().double()
@@ -268,13 +272,9 @@ class Occlusion:
             high = low + grid.resolution * grid.cell
             nearest = torch.minimum(torch.maximum(points, low), high)
             beyond = (points - nearest).norm(dim=1)
-            index = torch.floor((nearest - low) / grid.cell).long().clamp(0, grid.resolution - 1)
+            index = grid.index(nearest).clamp(0, grid.resolution - 1)
             inside_distance = self.clearance.to(points.device)[index[:, 0], index[:, 1], index[:, 2]].double()
             return torch.nan_to_num(inside_distance + beyond, nan=torch.inf) > self.margin
-
-    def drawn(self, means: torch.Tensor) -> torch.Tensor:
-        """(V, N) float32: 1 where primitive n is drawn in view v, 0 where it is hidden."""
-        return (~self.hidden(means)).float()
 
 
 def readable_mask(scene: Scene, index: int) -> np.ndarray | None:
@@ -289,6 +289,12 @@ def hide(logits: torch.Tensor, hidden: torch.Tensor) -> torch.Tensor:
     """(N,) opacity `logits` with those of the `hidden` (N,) bool primitives at `HIDDEN_LOGIT`
     (differentiable in the others)."""
     return torch.where(hidden, torch.full_like(logits, HIDDEN_LOGIT), logits)
+
+
+def drawn_in_view(primitives: Primitives, hidden: torch.Tensor) -> Primitives:
+    """`primitives` as one view draws them, for the rasterizer: those that `hidden` (N,) bool
+    marks hidden from it at `HIDDEN_LOGIT`."""
+    return dataclasses.replace(primitives, opacity_logits=hide(primitives.opacity_logits, hidden))
 
 
 def scene_occlusion(scene: Scene, model: ModelSettings, side: float | None,

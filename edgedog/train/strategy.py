@@ -4,7 +4,7 @@ the primitives at a target spacing along the edges (edgedog.train.spacing)."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 import torch
@@ -14,7 +14,7 @@ from edgedog.renderer.rasterize import RenderOutput, fisher_information
 from edgedog.scenes.camera import Camera
 from edgedog.train.config import MAX_COPIES, TrainConfig
 from edgedog.train.model import EdgeModel
-from edgedog.train.occlusion import Occlusion, hide
+from edgedog.train.occlusion import Occlusion, drawn_in_view
 from edgedog.train.optim import Optimizers
 from edgedog.train.resolution import ViewSet
 from edgedog.train.spacing import edge_directions, redundant, spacing_length, split_offsets, split_pieces
@@ -162,16 +162,20 @@ class DensityStrategy:
                 model.opacity_logits.clamp_(max=cap)
         return {"event": f"cull_{reason}", "before": before, "after": len(model)}
 
-    def _drawn(self, model: EdgeModel, views: ViewSet) -> torch.Tensor | None:
+    def _hidden(self, model: EdgeModel) -> torch.Tensor | None:
+        """(V, N) bool: the primitives the visual hull hides from each view; None without occlusion."""
+        return None if self.occlusion is None else self.occlusion.hidden(model.means)
+
+    def _drawn(self, model: EdgeModel, views: ViewSet, hidden: torch.Tensor | None) -> torch.Tensor | None:
         """(V, N) how much each view draws each primitive, relative to its largest opacity: the
-        view-dependent opacity's share, 0 where the visual hull hides it (no gradient); None
-        when every view draws every primitive alike."""
+        view-dependent opacity's share, 0 where `hidden` (`_hidden`) (no gradient); None when
+        every view draws every primitive alike."""
         weights = None
         if self.view_opacity:
             weights = relative_opacity(model.opacity_logits, model.opacity_dirs, model.means,
                                        camera_centres(views.cameras, model.device))
-        if self.occlusion is not None:
-            drawn = self.occlusion.drawn(model.means)
+        if hidden is not None:
+            drawn = (~hidden).float()
             weights = drawn if weights is None else weights * drawn
         return weights
 
@@ -179,7 +183,7 @@ class DensityStrategy:
         """(N,) `edge_hit_share` of the centres, each view counted by how much it draws the
         primitive (`_drawn`): a primitive hidden from a view is not expected on its edges."""
         return edge_hit_share(model.means.detach().double().cpu().numpy(), views.pinholes, views.edge_masks,
-                              self._drawn(model, views))
+                              self._drawn(model, views, self._hidden(model)))
 
     def _space(self, model: EdgeModel, optimizers: Optimizers, state: StrategyState, views: ViewSet) -> dict:
         """Hold the primitives at the target spacing along the edges (edgedog.train.spacing): remove
@@ -234,11 +238,11 @@ class DensityStrategy:
         gradient). With a view-dependent opacity or occlusion, each view renders the primitives
         as it draws them and the sum is divided by how much the views draw each (`_drawn`): a
         primitive that few views can see is not ranked below one that all views see."""
-        weights = self._drawn(model, views)
+        hidden = self._hidden(model)
+        weights = self._drawn(model, views, hidden)
         if weights is None:
             return fisher_information(model.primitives(), views.cameras, self.raster)
         centres = camera_centres(views.cameras, model.device) if self.view_opacity else None
-        hidden = None if self.occlusion is None else self.occlusion.hidden(model.means)
         with torch.no_grad():
             scores = torch.zeros(len(model), device=model.device)
             for view, camera in enumerate(views.cameras):
@@ -246,8 +250,7 @@ class DensityStrategy:
                 if centres is not None:
                     primitives = seen_from(primitives, model.opacity_dirs, centres[view])
                 if hidden is not None:
-                    primitives = replace(primitives,
-                                         opacity_logits=hide(primitives.opacity_logits, hidden[view]))
+                    primitives = drawn_in_view(primitives, hidden[view])
                 scores += fisher_information(primitives, [camera], self.raster)
             return scores / weights.sum(0).clamp_min(MIN_DRAWN)
 

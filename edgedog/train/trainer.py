@@ -36,7 +36,7 @@ from edgedog.train.config import TrainConfig, for_detector, from_dict, to_dict
 from edgedog.train.convergence import Convergence
 from edgedog.train.layers import LowerLayers, keep_on_residual, lower_layer_config, residual_maps
 from edgedog.train.model import EdgeModel
-from edgedog.train.occlusion import hide, scene_occlusion
+from edgedog.train.occlusion import drawn_in_view, scene_occlusion
 from edgedog.train.optim import Optimizers
 from edgedog.train.resolution import ViewSet, coarser
 from edgedog.train.strategy import DensityStrategy, StrategyState
@@ -324,8 +324,7 @@ class Trainer:
             if self.occlusion is not None:
                 if position == 0 or self._hidden is None or self._hidden.shape[1] != len(primitives):
                     self._hidden = self.occlusion.hidden(primitives.means)
-                primitives = dataclasses.replace(
-                    primitives, opacity_logits=hide(primitives.opacity_logits, self._hidden[view]))
+                primitives = drawn_in_view(primitives, self._hidden[view])
             out = rasterize(primitives, views.cameras[view], self.raster)
         with record_function("pixel uncertainty"):
             weight = None
