@@ -493,8 +493,10 @@ def _last_pruned(run: Path, to_gt) -> np.ndarray | None:
 def filter_losses(indices: np.ndarray, stages: RunStages, scene, detector: str | None) -> np.ndarray:
     """(N,) the extraction filter that removed each primitive `indices` (N,) of the run, re-applied
     in the extraction's order: "kept" for those in edge_points.ply, "opacity", "projection",
-    "silhouette", and "outliers" for the rest (that filter depends on every point)."""
-    from edgedog.curves import filtering
+    "silhouette", "contours", and "outliers" for the rest (that filter depends on every point;
+    a point it removed that also fails a later test is named by that test)."""
+    from edgedog.curves import contours, filtering
+    from edgedog.curves.config import ExtractConfig
 
     config = stages.extract_config
     chosen = stages.primitives.subset(indices)
@@ -502,15 +504,24 @@ def filter_losses(indices: np.ndarray, stages: RunStages, scene, detector: str |
             if stages.edge_points is not None and len(stages.edge_points) else np.zeros(len(indices), bool))
     loss = np.where(kept, "kept", "outliers").astype(object)
     left = ~kept
-    opacity, edge_value = float(config.get("min_opacity", 0.2)), float(config.get("min_edge_value", 0.1))
-    outside = float(config.get("max_outside_pixels", 4.0))
-    tests = [("opacity", config.get("filter_opacity", True),
+    default = ExtractConfig()
+
+    def setting(name: str):
+        return config.get(name, getattr(default, name))
+    opacity, edge_value = float(setting("min_opacity")), float(setting("min_edge_value"))
+    outside = float(setting("max_outside_pixels"))
+    tests = [("opacity", setting("filter_opacity"),
               lambda points, rows: filtering.opacity_mask(chosen.opacity[rows], opacity))]
     if scene is not None:
-        tests.append(("projection", config.get("filter_projection", True) and detector is not None,
+        tests.append(("projection", setting("filter_projection") and detector is not None,
                       lambda points, rows: filtering.projection_mask(points, scene, detector, edge_value)))
-        tests.append(("silhouette", config.get("filter_silhouette", True),
+        tests.append(("silhouette", setting("filter_silhouette"),
                       lambda points, rows: filtering.silhouette_mask(points, scene, outside)))
+        tests.append(("contours", bool(setting("filter_contours")) and detector is not None,
+                      lambda points, rows: contours.contour_mask(
+                          points, scene, detector, int(setting("contour_hull_cells")),
+                          float(setting("contour_max_cosine")), float(setting("contour_max_share")),
+                          float(setting("contour_probe_cells")))))
     for name, active, test in tests:
         rows = np.flatnonzero(left)
         if not (active and len(rows)):

@@ -260,7 +260,7 @@ def test_extract_run_counts_the_silhouette_filter_after_the_outliers(tmp_path):
     beside = points + [10.3 * 0.06, 0.0, 0.0]  # an edge-like tube 6 px outside the mask
     write_primitives(tmp_path / "primitives.ply", np.vstack([points, beside]),
                      np.vstack([tangents, tangents]), 0.6)
-    config = ExtractConfig(filter_projection=False, filter_outliers="on")
+    config = ExtractConfig(filter_projection=False, filter_outliers="on", filter_contours=False)
     result = extract_run(tmp_path, config, _MaskedScene(), "exact")
     assert list(result.counts)[:4] == ["primitives", "after_opacity", "after_outliers", "after_silhouette"]
     kept = result.points.points
@@ -395,7 +395,8 @@ def test_extract_run_filters_fits_and_writes_its_outputs(tmp_path):
 def test_extract_run_with_nothing_left_writes_empty_files(tmp_path):
     points, tangents = segment([0.0, 0.0, -0.2], [0.0, 0.0, 0.2], 0.002)
     write_primitives(tmp_path / "primitives.ply", points, tangents, 0.1)
-    result = extract_run(tmp_path, ExtractConfig(filter_projection=False, filter_silhouette=False))
+    result = extract_run(tmp_path, ExtractConfig(filter_projection=False, filter_silhouette=False,
+                                                 filter_contours=False))
     assert result.counts["after_opacity"] == 0 and result.curves.num_curves == 0
     for name in ("curves.json", "curves.obj", "curves.ply", "edge_points.ply"):
         assert read_edges(tmp_path / name).is_empty
@@ -404,13 +405,14 @@ def test_extract_run_with_nothing_left_writes_empty_files(tmp_path):
 def test_the_silhouette_filter_alone_needs_no_edge_maps(builtin_scene_dir, tmp_path):
     points, tangents = segment([0.4, 0.4, 0.2], [0.6, 0.4, 0.2], 0.002)
     write_primitives(tmp_path / "primitives.ply", points, tangents, 0.6)
-    # maps of an unknown detector: only the projection filter would ask for them
+    # maps of an unknown detector: only the projection and contour filters would ask for them
     log = {"scene": str(builtin_scene_dir), "detector": "no-such-maps"}
     (tmp_path / "log.json").write_text(json.dumps(log))
-    result = extract_run(tmp_path, ExtractConfig(filter_projection=False))
+    result = extract_run(tmp_path, ExtractConfig(filter_projection=False, filter_contours=False))
     assert "after_silhouette" in result.counts
-    with pytest.raises(ConfigError, match="no-such-maps"):
-        extract_run(tmp_path, ExtractConfig())
+    for needs_maps in (ExtractConfig(), ExtractConfig(filter_projection=False)):
+        with pytest.raises(ConfigError, match="no-such-maps"):
+            extract_run(tmp_path, needs_maps)
 
 
 @pytest.mark.shared_data

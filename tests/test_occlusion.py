@@ -13,8 +13,9 @@ import pytest
 import torch
 
 from edgedog.errors import ConfigError
+from edgedog.hull import carve
 from edgedog.synthetic.cameras import TARGET, orbit_cameras
-from edgedog.train.occlusion import HIDDEN_LOGIT, Occlusion, carve, hide, hull_depth
+from edgedog.train.occlusion import HIDDEN_LOGIT, Occlusion, hide, hull_depth
 from edgedog.train.trainer import Trainer
 from tests.helpers.tiny_runs import every_fifth_view, tiny_config
 

@@ -13,6 +13,7 @@ from collections.abc import Iterable
 from dataclasses import dataclass, field
 from typing import Annotated, Literal
 
+from edgedog.hull import MAX_HULL_CELLS
 from edgedog.settings import Range, Settings, to_dict
 from edgedog.settings import with_overrides as settings_with_overrides
 
@@ -71,6 +72,24 @@ class ExtractConfig(Settings):
     """EdgeGaussians use 25 neighbours; an edge held by fewer primitives than that reaches across
     to other edges and is dropped whole, so 8 (docs/BENCHMARKS.md)."""
     outlier_std: Annotated[float, Range(0)] = 2.0
+    filter_contours: bool = True
+    """Drop the points on the occluding contours of curved faces: those that most views drawing
+    them see at grazing incidence on the object's visual hull (`edgedog.curves.contours`);
+    skipped on scenes without masks. On the 42 CAD designs at `quick` F10 87.7 -> 89.0 (better on
+    11, worse on 6 by at most 0.3; Acc 11.5 -> 7.4 mm); on the shared ABC objects within 0.4
+    (docs/notes/2026-11-27-contour-filter.md)."""
+    contour_max_cosine: Share = 0.25
+    """A view sees a point at grazing incidence where |cos| between the direction to its camera
+    and the hull's normals is below this (0.25: within 14.5 degrees of the surface)."""
+    contour_max_share: Share = 0.5
+    """Keep a point when at most this share of the views drawing it see it at grazing incidence.
+    Stricter shares remove more contours and, on the shared ABC objects, some true edges: 0.3
+    with `contour_probe_cells` 1.5 gains 2.3 F10 on the CAD designs, loses up to 0.9 on 00004926."""
+    contour_hull_cells: Annotated[int, Range(16, MAX_HULL_CELLS)] = 128
+    """Cells per side of the visual hull's grid over the object's box."""
+    contour_probe_cells: Annotated[float, Range(0, 8)] = 1.0
+    """A view grazes a point only where it grazes the hull's normals this many cells around it
+    too (0: the point's own normal): at an edge the hull creases, and no view grazes both faces."""
 
     # --- directions
     min_elongation: Annotated[float, Range(1)] = 1.5

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from edgedog.curve_files import EdgeCurves, write_edges
-from edgedog.curves import filtering, fitting, grouping, junctions, topology
+from edgedog.curves import contours, filtering, fitting, grouping, junctions, topology
 from edgedog.curves.config import ExtractConfig
 from edgedog.errors import InputError
 from edgedog.files import read_json
@@ -113,12 +113,13 @@ def run_scene(run_dir: Path, maps: bool = True) -> tuple[Scene, str]:
 
 def filter_primitives(primitives: EdgePrimitives, config: ExtractConfig, scene: Scene | None,
                       detector: str | None, counts: dict[str, int]) -> EdgePrimitives:
-    """Apply the switched-on filters in order (opacity, projection, outliers, silhouette),
+    """Apply the switched-on filters in order (opacity, projection, outliers, silhouette, contours),
     recording in `counts` how many primitives are left after each. A filter that does not run is
     not counted: the silhouette filter on a scene without masks or without a scene (None), the
     outlier filter on 'auto' where the silhouette filter runs. The silhouette filter comes last:
     the outlier statistics are relative to the spread of all points, and without the points it
-    removes they drop sparse real edges (half of 00000006's top hole circle)."""
+    removes they drop sparse real edges (half of 00000006's top hole circle). The contour filter
+needs the scene's masks and edge maps."""
     counts["primitives"] = len(primitives)
     if config.filter_opacity:
         primitives = primitives.subset(filtering.opacity_mask(primitives.opacity, config.min_opacity))
@@ -138,6 +139,13 @@ def filter_primitives(primitives: EdgePrimitives, config: ExtractConfig, scene: 
     if inside is not None:
         primitives = primitives.subset(inside)
         counts["after_silhouette"] = len(primitives)
+    if config.filter_contours and scene is not None and detector is not None:
+        keep = contours.contour_mask(primitives.points, scene, detector, config.contour_hull_cells,
+                                     config.contour_max_cosine, config.contour_max_share,
+                                     config.contour_probe_cells)
+        if keep is not None:
+            primitives = primitives.subset(keep)
+            counts["after_contours"] = len(primitives)
     return primitives
 
 
@@ -185,8 +193,9 @@ def extract_run(run_dir: str | Path, config: ExtractConfig = ExtractConfig(), sc
     primitives = EdgePrimitives.from_arrays(read_ply(run_dir / "primitives.ply"))
     if layers is not None:
         primitives = primitives.in_layers(layers)
-    if (config.filter_projection or config.filter_silhouette) and (scene is None or detector is None):
-        scene, detector = run_scene(run_dir, maps=config.filter_projection)  # masks need no maps
+    if (config.filter_projection or config.filter_silhouette or config.filter_contours) and (
+            scene is None or detector is None):
+        scene, detector = run_scene(run_dir, maps=config.filter_projection or config.filter_contours)
     result = extract_primitives(primitives, config, scene, detector)
     for name in OUTPUTS[:3]:
         write_edges(out_dir / name, result.curves)

@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 from typing import Annotated, Any, Literal
 
 from edgedog.errors import ConfigError
+from edgedog.hull import MAX_HULL_CELLS
 from edgedog.init.settings import MAX_LOGIT, MAX_PRIMITIVES, Count, InitSettings, Logit
 from edgedog.renderer.config import KActivation, Kernel
 from edgedog.settings import (
@@ -73,9 +74,6 @@ MAX_RATE = 1.0
 (or 1 px, 1 log-scale unit) per step is already far past any useful rate."""
 MAX_DECAY = 1 / MAX_RATE
 """Weight decay: each step shrinks a parameter by its learning rate times this, at most all of it."""
-MAX_HULL_CELLS = 192
-"""The visual hull's grid: 192^3 cells are 7 million centres projected into every view (170 MB
-of coordinates while carving)."""
 MAX_VIEWS = 100_000
 """More views than any capture holds."""
 

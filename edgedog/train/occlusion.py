@@ -23,14 +23,13 @@ off the object, and the projection cull removes it (`Occlusion.outside`).
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass
 
-import cv2
 import numpy as np
 import torch
 from scipy.ndimage import distance_transform_edt
 
-from edgedog.errors import ConfigError, InputError
+from edgedog.errors import ConfigError
+from edgedog.hull import HullGrid, carve, readable_mask
 from edgedog.init import scene_cube
 from edgedog.renderer.primitives import Primitives
 from edgedog.scenes.camera import Camera
@@ -46,69 +45,6 @@ RAY_CHUNK = 65536
 """Rays marched at once: a block of them is (RAY_CHUNK, RAY_BLOCK, 3) float64, 50 MB."""
 PROJECTED_AT_ONCE = 4_000_000
 """Primitive-view pairs projected at once by `Occlusion.hidden` ((pairs, 3) float64, 96 MB)."""
-
-
-@dataclass(frozen=True)
-class HullGrid:
-    """The visual hull on a grid over an axis-aligned cube.
-
-    Attributes:
-        occupied: (R, R, R) bool, indexed [x, y, z]: the cell's centre is inside every mask.
-        origin: (3,) float64 the cube's lowest corner, world units.
-        cell: a cell's side, world units.
-    """
-
-    occupied: torch.Tensor
-    origin: np.ndarray
-    cell: float
-
-    @property
-    def resolution(self) -> int:
-        return int(self.occupied.shape[0])
-
-    def index(self, points: torch.Tensor) -> torch.Tensor:
-        """(..., 3) int64 [x, y, z] of the cell each point (..., 3) (float64) lies in, outside
-        [0, R) for a point outside the cube."""
-        origin = torch.as_tensor(self.origin, dtype=points.dtype, device=points.device)
-        return torch.floor((points - origin) / self.cell).long()
-
-    def lookup(self, points: torch.Tensor) -> torch.Tensor:
-        """(...) bool: whether each point (..., 3) (float64) lies in an occupied cell (False
-        outside the cube)."""
-        index = self.index(points)
-        r = self.resolution
-        inside = ((index >= 0) & (index < r)).all(dim=-1)
-        flat = (index.clamp(0, r - 1) * torch.tensor([r * r, r, 1], device=points.device)).sum(-1)
-        return inside & self.occupied.reshape(-1)[flat]
-
-
-def widened(mask: np.ndarray) -> np.ndarray:
-    """(H, W) bool `mask` grown by one pixel (3 x 3): a mask's anti-aliased border may fall on
-    either side of the 0.5 coverage it is cut at."""
-    return cv2.dilate(mask.astype(np.uint8), np.ones((3, 3), np.uint8)) > 0
-
-
-def carve(cameras: list[Camera], masks: list[np.ndarray | None], center: np.ndarray, side: float,
-          resolution: int) -> HullGrid:
-    """The visual hull of the (H, W) bool `masks` on a `resolution`^3 grid over the cube of edge
-    `side` centred on `center` (3,). A view without a mask (None) carves nothing; a cell that
-    projects outside a view's image or behind its camera is not carved by that view (the view
-    cannot tell). Each mask is grown by a pixel (`widened`)."""
-    origin = np.asarray(center, np.float64) - side / 2
-    cell = side / resolution
-    steps = (np.arange(resolution) + 0.5) * cell
-    grid = np.stack(np.meshgrid(steps, steps, steps, indexing="ij"), axis=-1).reshape(-1, 3) + origin
-    keep = np.ones(len(grid), bool)
-    for camera, mask in zip(cameras, masks):
-        if mask is None:
-            continue
-        grown = widened(mask)
-        pixels, inside = camera.pixels(grid[keep])
-        held = np.ones(len(pixels), bool)
-        held[inside] = grown[pixels[inside, 1], pixels[inside, 0]]
-        keep[np.flatnonzero(keep)[~held]] = False
-    occupied = torch.from_numpy(keep.reshape(resolution, resolution, resolution))
-    return HullGrid(occupied, origin, cell)
 
 
 def box_span(origins: np.ndarray, directions: np.ndarray, low: np.ndarray, high: np.ndarray
@@ -275,14 +211,6 @@ class Occlusion:
             index = grid.index(nearest).clamp(0, grid.resolution - 1)
             inside_distance = self.clearance.to(points.device)[index[:, 0], index[:, 1], index[:, 2]].double()
             return torch.nan_to_num(inside_distance + beyond, nan=torch.inf) > self.margin
-
-
-def readable_mask(scene: Scene, index: int) -> np.ndarray | None:
-    """(H, W) bool mask of view `index`, None when it has none or it cannot be read."""
-    try:
-        return scene.load_mask(index)
-    except InputError:
-        return None
 
 
 def hide(logits: torch.Tensor, hidden: torch.Tensor) -> torch.Tensor:
