@@ -7,14 +7,17 @@ takes the object's surface normals from it (`extract.filter_contours`, edgedog.c
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import cv2
 import numpy as np
-import torch
 
 from edgedog.errors import InputError
 from edgedog.scenes.camera import Camera
 from edgedog.scenes.scene import Scene
+
+if TYPE_CHECKING:  # torch is imported where a hull is carved, so that `import edgedog` stays light
+    import torch
 
 MAX_HULL_CELLS = 192
 """The visual hull's grid: 192^3 cells are 7 million centres projected into every view (170 MB
@@ -42,8 +45,7 @@ class HullGrid:
     def index(self, points: torch.Tensor) -> torch.Tensor:
         """(..., 3) int64 [x, y, z] of the cell each point (..., 3) (float64) lies in, outside
         [0, R) for a point outside the cube."""
-        origin = torch.as_tensor(self.origin, dtype=points.dtype, device=points.device)
-        return torch.floor((points - origin) / self.cell).long()
+        return ((points - points.new_tensor(self.origin)) / self.cell).floor().long()
 
     def lookup(self, points: torch.Tensor) -> torch.Tensor:
         """(...) bool: whether each point (..., 3) (float64) lies in an occupied cell (False
@@ -51,7 +53,7 @@ class HullGrid:
         index = self.index(points)
         r = self.resolution
         inside = ((index >= 0) & (index < r)).all(dim=-1)
-        flat = (index.clamp(0, r - 1) * torch.tensor([r * r, r, 1], device=points.device)).sum(-1)
+        flat = (index.clamp(0, r - 1) * index.new_tensor([r * r, r, 1])).sum(-1)
         return inside & self.occupied.reshape(-1)[flat]
 
 
@@ -80,6 +82,8 @@ def carve(cameras: list[Camera], masks: list[np.ndarray | None], center: np.ndar
         held = np.ones(len(pixels), bool)
         held[inside] = grown[pixels[inside, 1], pixels[inside, 0]]
         keep[np.flatnonzero(keep)[~held]] = False
+    import torch  # here, not at the top: see TYPE_CHECKING above
+
     occupied = torch.from_numpy(keep.reshape(resolution, resolution, resolution))
     return HullGrid(occupied, origin, cell)
 
