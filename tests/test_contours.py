@@ -142,6 +142,13 @@ def test_undrawn_points_and_points_without_a_normal_are_not_judged(scene):
     np.testing.assert_array_equal(grazing_shares(points, normals, scene, "test", 0.25), [0.0, 0.0])
 
 
+def test_non_finite_and_far_points_are_not_judged(scene):
+    points = np.array([[np.nan, 0.5, 0.5], [np.inf, 0.5, 0.5], [0.5, 0.5, -np.inf], [50.0, 50.0, 50.0]])
+    with np.errstate(invalid="ignore"):
+        keep = contour_mask(points, scene, "test", CELLS, 0.25, 0.5, probe=1.0)
+    assert keep.tolist() == [True, True, True, True]
+
+
 def test_a_scene_without_masks_is_not_filtered():
     scene = CylinderScene(views=8, masks=False)
     assert contour_mask(rim(TOP), scene, "test", CELLS, 0.25, 0.5) is None
