@@ -41,6 +41,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from edgedog.curve_files import EdgeCurves, curve_polylines
+from edgedog.curves.contours import DRAWN_VALUE, window_max
 from edgedog.errors import InputError
 from edgedog.groundtruth import (
     GT_SPACING,
@@ -61,8 +62,6 @@ MIN_VIEWS = 2
 """Fewest views that must see a curve for it to be triangulated."""
 MIN_DRAWN = 0.1
 """Mean edge value along a curve's projection under which it is not drawn in the maps."""
-DRAWN_VIEW = 0.3
-"""A view draws a curve where the mean edge value along it reaches this."""
 PROBES = 32
 """Points per curve examined in each view."""
 MAX_VIEWS = 100
@@ -165,7 +164,7 @@ class Diagnosis:
         rows += [f"  curve {f.index}: {f.length_mm:.0f} mm, {f.near_gt:.0f}% near GT: {f.cause}"
                  for f in self.false_curves[:20]]
         legend = ("columns: seen = views that see it (on the rendered mesh; - without one), drew = views "
-                  f"whose map draws it (mean edge value >= {DRAWN_VIEW}), drawn = mean edge value along it "
+                  f"whose map draws it (mean edge value >= {DRAWN_VALUE}), drawn = mean edge value along it "
                   "in the views that see it, prim = median distance (mm) to the nearest primitive centre")
         return "\n".join(rows + [legend] + [f"note: {n}" for n in self.notes])
 
@@ -333,7 +332,7 @@ def view_evidence(curves: list[GroundTruthCurve], mesh, scene, detector: str | N
             camera = scene.camera(int(i))
             render = _render(renderers, mesh, gt_to_world, camera) if mesh is not None else None
             seen = _visible(points, camera, render)
-            edge = _window_max(scene.load_edge_map(int(i), detector)) if detector is not None else None
+            edge = window_max(scene.load_edge_map(int(i), detector)) if detector is not None else None
             background = _background(scene, int(i), render)
             pixels, _ = camera.pixels(points)
             seen_count = np.bincount(owner, seen, count)
@@ -344,8 +343,8 @@ def view_evidence(curves: list[GroundTruthCurve], mesh, scene, detector: str | N
                 value = np.bincount(owner, np.where(seen, edge[pixels[:, 1], pixels[:, 0]], 0.0), count)
                 value = value / np.maximum(seen_count, 1)
                 drawn_sum += np.where(in_view, value, 0.0)
-                drawn_views += in_view & (value >= DRAWN_VIEW)
-                counted = in_view if render is not None else in_view & (value >= DRAWN_VIEW)
+                drawn_views += in_view & (value >= DRAWN_VALUE)
+                counted = in_view if render is not None else in_view & (value >= DRAWN_VALUE)
                 into = _looks_into_wedge(curves, *middles, scene.world_to_gt @ np.r_[camera.center, 1.0])
                 for side, chosen in ((0, into & in_view), (1, ~into & in_view)):
                     wedge_sums[:, side] += np.stack([np.where(chosen, value, 0.0), chosen], axis=1)
@@ -399,13 +398,6 @@ def _visible(points: np.ndarray, camera, render) -> np.ndarray:
     from edgedog.synthetic.exact import visible
 
     return visible(points, camera, render)
-
-
-def _window_max(image: np.ndarray) -> np.ndarray:
-    """(H, W) largest value of each pixel's 3x3 neighbourhood."""
-    import cv2
-
-    return cv2.dilate(image, np.ones((3, 3), np.uint8))
 
 
 def _background(scene, index: int, render) -> np.ndarray | None:
@@ -508,6 +500,8 @@ def filter_losses(indices: np.ndarray, stages: RunStages, scene, detector: str |
 
     def setting(name: str):
         return config.get(name, getattr(default, name))
+    # An extract.json without the key was written before the contour filter existed: it did not run.
+    contours_on = bool(config.get("filter_contours", False))
     opacity, edge_value = float(setting("min_opacity")), float(setting("min_edge_value"))
     outside = float(setting("max_outside_pixels"))
     tests = [("opacity", setting("filter_opacity"),
@@ -517,7 +511,7 @@ def filter_losses(indices: np.ndarray, stages: RunStages, scene, detector: str |
                       lambda points, rows: filtering.projection_mask(points, scene, detector, edge_value)))
         tests.append(("silhouette", setting("filter_silhouette"),
                       lambda points, rows: filtering.silhouette_mask(points, scene, outside)))
-        tests.append(("contours", bool(setting("filter_contours")) and detector is not None,
+        tests.append(("contours", contours_on and detector is not None,
                       lambda points, rows: contours.contour_mask(
                           points, scene, detector, int(setting("contour_hull_cells")),
                           float(setting("contour_max_cosine")), float(setting("contour_max_share")),

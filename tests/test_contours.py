@@ -12,6 +12,7 @@ import pytest
 from edgedog.curves.config import ExtractConfig
 from edgedog.curves.contours import contour_mask, grazing_shares, hull_normals, scene_hull
 from edgedog.curves.extract import filter_primitives
+from edgedog.diagnosis import RunStages, filter_losses
 from edgedog.primitives import EdgePrimitives
 from edgedog.synthetic.cameras import TARGET, orbit_cameras
 
@@ -170,3 +171,23 @@ def test_filter_primitives_runs_it_last_and_counts_it(scene):
                             filter_contours=False)
     filter_primitives(primitives, without, scene, "test", off)
     assert "after_contours" not in off
+
+
+def test_the_diagnosis_names_the_filter_only_where_the_extraction_ran_it(scene):
+    """An extract.json written before the contour filter existed has no `filter_contours`: the
+    filter did not run, and the diagnosis does not name it."""
+    points = np.concatenate([rim(TOP), grazed_lines(scene)])
+    count = len(points)
+    primitives = EdgePrimitives(points, np.tile([0.0, 0.0, 1.0], (count, 1)), np.full(count, 3.0),
+                                np.ones(count), np.ones((count, 2)))
+    others_off = {"filter_projection": False, "filter_silhouette": False, "contour_hull_cells": CELLS}
+
+    def losses(config: dict) -> np.ndarray:
+        stages = RunStages(points, primitives, None, config, 0, None)
+        return filter_losses(np.arange(count), stages, scene, "test")
+    before = losses(others_off)
+    assert set(before) == {"outliers"}
+    ran = losses({**others_off, "filter_contours": True})
+    dropped = ~contour_mask(points, scene, "test", CELLS, 0.25, 0.5, probe=1.0)  # the defaults
+    assert dropped[len(rim(TOP)):].mean() > 0.5
+    np.testing.assert_array_equal(ran == "contours", dropped)

@@ -22,8 +22,8 @@ from edgedog.hull import HullGrid, carve, readable_mask
 from edgedog.scenes import Scene
 
 DRAWN_VALUE = 0.3
-"""A view draws a point where its edge map, at the point's pixel or one of the 8 around it, is at
-least this (the per-curve diagnosis' 'drew' uses the same value)."""
+"""A view draws a point where its edge map (`window_max`) is at least this; the per-curve
+diagnosis counts the views that draw a curve by the same value."""
 COARSE_CELLS = 64
 """Cells per side of the first hull, over the scene's bounds, which finds the object's box."""
 
@@ -44,6 +44,12 @@ def scene_hull(scene: Scene, cells: int) -> HullGrid | None:
     low = coarse.origin + (occupied.min(axis=0) - 1) * coarse.cell
     high = coarse.origin + (occupied.max(axis=0) + 2) * coarse.cell
     return carve(scene.cameras, masks, (low + high) / 2, float(np.max(high - low)), cells)
+
+
+def window_max(image: np.ndarray) -> np.ndarray:
+    """(H, W) largest value of each pixel's 3x3 neighbourhood: a point projected a pixel off its
+    line still lands on it."""
+    return cv2.dilate(image, np.ones((3, 3), np.uint8))
 
 
 def signed_distance(grid: HullGrid) -> np.ndarray:
@@ -89,7 +95,7 @@ def grazing_shares(points: np.ndarray, normals: np.ndarray, scene: Scene, detect
     for i in range(len(scene)):
         camera = scene.camera(i)
         pixels, inside = camera.pixels(points)
-        edge_map = cv2.dilate(scene.load_edge_map(i, detector).astype(np.float32), np.ones((3, 3), np.uint8))
+        edge_map = window_max(scene.load_edge_map(i, detector).astype(np.float32))
         drawn = np.zeros(len(points), bool)
         drawn[inside] = edge_map[pixels[inside, 1], pixels[inside, 0]] >= DRAWN_VALUE
         towards = camera.center - points[drawn]

@@ -115,11 +115,11 @@ def filter_primitives(primitives: EdgePrimitives, config: ExtractConfig, scene: 
                       detector: str | None, counts: dict[str, int]) -> EdgePrimitives:
     """Apply the switched-on filters in order (opacity, projection, outliers, silhouette, contours),
     recording in `counts` how many primitives are left after each. A filter that does not run is
-    not counted: the silhouette filter on a scene without masks or without a scene (None), the
-    outlier filter on 'auto' where the silhouette filter runs. The silhouette filter comes last:
-    the outlier statistics are relative to the spread of all points, and without the points it
-    removes they drop sparse real edges (half of 00000006's top hole circle). The contour filter
-needs the scene's masks and edge maps."""
+    not counted: the silhouette and contour filters on a scene without masks or without a scene
+    (None), the outlier filter on 'auto' where the silhouette filter runs. The silhouette filter
+    comes after the outliers: the outlier statistics are relative to the spread of all points, and
+    without the points it removes they drop sparse real edges (half of 00000006's top hole
+    circle). The contour filter, last, also needs the edge maps (`detector`)."""
     counts["primitives"] = len(primitives)
     if config.filter_opacity:
         primitives = primitives.subset(filtering.opacity_mask(primitives.opacity, config.min_opacity))
