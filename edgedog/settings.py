@@ -319,11 +319,12 @@ def to_dict(settings) -> dict:
     return dataclasses.asdict(settings)
 
 
-def from_dict(settings: type, values: Any):
+def from_dict(settings: type, values: Any, absent: Mapping[str, Any] | None = None):
     """A dataclass of settings (whose every field has a default) from `to_dict`'s output.
-    Settings it lacks (written before they existed) take their defaults; an unknown or bad one
-    raises ConfigError naming it."""
-    return with_values(settings(), _paths(settings, values))
+    Settings it lacks (written before they existed) take their value in `absent` (dotted name ->
+    value), else their defaults; an unknown or bad one raises ConfigError naming it."""
+    paths = _paths(settings, values)
+    return with_values(settings(), {**{k: v for k, v in (absent or {}).items() if k not in paths}, **paths})
 
 
 def _paths(settings: type, values: Any, where: str = "") -> dict[str, Any]:

@@ -296,11 +296,22 @@ def test_a_config_json_of_an_older_version_reads_with_defaults():
     assert config.strategy == TrainConfig().strategy and config.init == TrainConfig().init
 
 
+def test_a_setting_whose_default_changed_reads_as_it_was_where_a_config_lacks_it():
+    """The view-dependent opacity is on by default, but a run written before it existed trained
+    without it: its config reads as it trained, in either layout; one that holds it keeps it."""
+    assert TrainConfig().model.view_opacity
+    assert not from_dict({"model": {"kernel": "dog"}}).model.view_opacity
+    assert not from_dict({"epochs": 30}).model.view_opacity
+    assert from_dict({"model": {"view_opacity": True}}).model.view_opacity
+    assert from_dict(to_dict(TrainConfig())) == TrainConfig()
+
+
 def test_a_flat_config_of_format_2_migrates_to_the_same_config():
     """A run folder written before the sections holds flat names, the renamed ones among them."""
     old = {"epochs": 30, "kernel": "gaussian", "k_init": [0.5, 0.5], "init_count": 2500, "map_floor": 0.2,
            "edge_threshold": 0.4, "sampled_loss_every": 3, "keep_ratio": 0.8, "layer": 1}
     expected = with_overrides(TrainConfig(), ["schedule.epochs=30", "model.kernel=gaussian", "init.k=0.5,0.5",
+                                              "model.view_opacity=false",  # written before it existed
                                               "init.count=2500", "maps.floor=0.2", "maps.edge_threshold=0.4",
                                               "loss.sampled_every=3", "strategy.keep_ratio=0.8",
                                               "layers.layer=1"])

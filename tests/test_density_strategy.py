@@ -108,10 +108,10 @@ def square_edges(side: float) -> list:
 def spaced(model: EdgeModel, optimizers: Optimizers | None = None, **changes) -> tuple[EdgeModel, list[dict],
                                                                                      Optimizers]:
     """`model` after a spacing event at epoch 0 (no other event), the log, and its Adam
-    (`optimizers`, or new ones)."""
+    (`optimizers`, or new ones); one opacity for every view, as `model` has."""
     config = with_settings(TrainConfig(), dict(
         duplicate_epochs=(), cull_projection_epochs=(), cull_opacity_epochs=(), primitive_uncertainty=False,
-        spacing_epochs=(0,), **changes))
+        spacing_epochs=(0,), view_opacity=False, **changes))
     optimizers = optimizers or Optimizers(model, config)
     strategy = DensityStrategy(config, RasterConfig())
     state = strategy.initial_state(len(model), torch.device("cpu"))

@@ -177,7 +177,7 @@ def test_the_projection_cull_also_removes_what_lies_outside_the_hull(occlusion):
     from edgedog.train.optim import Optimizers
     from edgedog.train.strategy import DensityStrategy
 
-    config = tiny_config(cull_projection_epochs=(0,), cull_projection_below=0.0)
+    config = tiny_config(cull_projection_epochs=(0,), cull_projection_below=0.0, view_opacity=False)
     points = InitialPoints(np.array([[0.5, 0.5, HIGH[2]], [0.5, 0.5, HIGH[2] + 0.3]]), np.full(2, 0.01),
                            "uniform", {})
     model = EdgeModel.from_points(points, 0.1, 0.0, torch.Generator().manual_seed(0))
@@ -185,7 +185,7 @@ def test_the_projection_cull_also_removes_what_lies_outside_the_hull(occlusion):
     optimizers = Optimizers(model, config)
     state = strategy.initial_state(len(model), model.device)
 
-    class Views:  # the projection cull reads the pinholes and edge masks only
+    class Views:  # with one opacity for all views, the cull reads the pinholes and edge masks only
         pinholes = CAMERAS[:2]
         cameras = []
         edge_masks = [torch.ones(SIZE, SIZE, dtype=torch.bool)] * 2

@@ -17,6 +17,7 @@ from edgedog.train.model import GROUPS, EdgeModel
 from edgedog.train.optim import Optimizers, learning_rates
 from edgedog.train.resolution import ViewSet
 from edgedog.train.trainer import Trainer, _finite_grads
+from edgedog.train.view_opacity import camera_centres, largest_logits
 from tests.helpers.backends import KERNEL_DEVICES, each_device
 from tests.helpers.paths import shared_path
 
@@ -92,14 +93,12 @@ def test_density_control_events_and_outputs(box, tmp_path):
             assert added > 0 and added % trainer.config.strategy.duplicate_copies == 0
         else:
             assert event["after"] <= event["before"]
-    # Adam's moments stay aligned with the parameters through every change; b of the view-dependent
-    # opacity (off by default) is never trained.
-    assert not trainer.model.opacity_dirs.any()
+    # Adam's moments stay aligned with the parameters through every change, those of b, the
+    # view-dependent opacity (on by default, trained from epoch 5 of 6 here), among them.
+    assert trainer.model.opacity_dirs.any()
+    assert trainer.model.opacity_dirs.norm(dim=1).max() <= trainer.config.model.view_opacity_cap + 1e-5
     for name, tensor in trainer.model.tensors().items():
         assert trainer.optimizers.groups[name]["params"] == [tensor]
-        if name == "opacity_dirs":
-            assert not trainer.optimizers.moments(name)
-            continue
         state = trainer.optimizers.moments(name)
         assert state["exp_avg"].shape == tensor.shape
         assert torch.isfinite(tensor).all()
@@ -110,13 +109,17 @@ def test_density_control_events_and_outputs(box, tmp_path):
             logged["maps"]["edge_profile"]) == (0.1, 0.05, "raw")
     snap = trainer.latest_snapshot
     assert snap.means.shape == (len(trainer.model), 3) and snap.step == trainer.step_index
-    # primitives.ply holds the final snapshot's activated arrays, which invert to the parameters.
+    # primitives.ply holds the final snapshot's activated arrays, which invert to the parameters
+    # (the opacity to its logit's largest over the views).
     saved = read_ply(tmp_path / "run" / "primitives.ply")
     for name in ("means", "scales", "quats", "opacity", "k_raw"):
         assert np.array_equal(getattr(saved, name), getattr(trainer.snapshot().primitives, name)), name
+    model = trainer.model
+    largest = largest_logits(model.opacity_logits, model.opacity_dirs, model.means,
+                             camera_centres(trainer.cameras, model.device))
     for name, values in saved.raw().items():
-        torch.testing.assert_close(torch.from_numpy(values), getattr(trainer.model, name).detach(),
-                                   rtol=1e-4, atol=1e-3)
+        expected = largest if name == "opacity_logits" else getattr(model, name)
+        torch.testing.assert_close(torch.from_numpy(values), expected.detach(), rtol=1e-4, atol=1e-3)
 
 
 def test_the_baseline_switches_off_edgedog(box, tmp_path):

@@ -236,7 +236,7 @@ def test_a_run_with_view_opacity_resumes_exactly_and_writes_b(box, tmp_path):
 
 
 def test_off_it_stays_zero_and_out_of_the_files_and_old_checkpoints_resume(box, tmp_path):
-    config = tiny_config(epochs=2, checkpoint_every=1)
+    config = tiny_config(epochs=2, checkpoint_every=1, view_opacity=False)
     part = Trainer(box, config, tmp_path / "run", progress=False)
     while part.epoch < 1:
         part.step()

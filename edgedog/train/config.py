@@ -159,12 +159,13 @@ class ModelSettings(Settings):
     """'dog' (EdgeDoG) or 'gaussian' (the EdgeGaussians baseline)."""
     k_activation: KActivation = "sigmoid"
     """Activation of k: 'sigmoid' for ABC, 'exp' for other data (docs/METHOD.md)."""
-    view_opacity: bool = False
+    view_opacity: bool = True
     """A view-dependent opacity: each primitive's opacity logit in a view is a + b . d, with d the
     unit direction from its centre to the camera and b (3,) trained from `view_opacity_from_epoch`
     (edgedog.train.view_opacity), so that an edge hidden from most views (a concave corner) is
-    not penalised as a false edge where it is hidden. Off: one opacity for every view (the
-    paper's model). primitives.ply then holds b and, as `opacity`, the largest over the views."""
+    not penalised as a false edge where it is hidden. primitives.ply then holds b and, as
+    `opacity`, the largest over the views. False: one opacity for every view (the paper's
+    model), which keeps F5 higher on some objects (docs/RESULTS.md, the CAD benchmark)."""
     view_opacity_cap: Annotated[float, Range(0, MAX_LOGIT)] = 6.0
     """Largest |b| (logit units): a primitive's logit varies by at most twice this over the sphere
     of directions."""
@@ -448,14 +449,20 @@ def is_flat(values: Any) -> bool:
     return isinstance(values, dict) and bool(values) and not sections & set(values)
 
 
+ABSENT_MEANS = {"model.view_opacity": False}
+"""Settings whose default changed after they were added: a saved config that lacks one was
+written before it existed, and its run trained as this value, not as today's default."""
+
+
 def from_dict(values: Any) -> TrainConfig:
     """A config from `to_dict`'s output (a run folder's config.json, log.json, a checkpoint), or
     from the flat dict of a run written before the sections (migrated through `RENAMED`).
-    Settings it lacks (written before they existed) take their defaults; an unknown or bad one
-    raises ConfigError naming it."""
+    Settings it lacks (written before they existed) take their defaults, or their `ABSENT_MEANS`
+    value; an unknown or bad one raises ConfigError naming it."""
     if not is_flat(values):
-        return settings_from_dict(TrainConfig, values)
-    return with_values(TrainConfig(), {setting_name(str(key)): value for key, value in values.items()})
+        return settings_from_dict(TrainConfig, values, ABSENT_MEANS)
+    return with_values(TrainConfig(), {**ABSENT_MEANS, **{setting_name(str(key)): value
+                                                          for key, value in values.items()}})
 
 
 def for_detector(config: TrainConfig, detector: str) -> TrainConfig:
@@ -540,10 +547,12 @@ def paper() -> TrainConfig:
     - maps.silhouette_correction 'none': the maps' outline left where the detector drew it
       (ours: pulled onto the alpha outline of renders).
     - maps.correction 'none' and maps.floor 0, as in `full`: no sub-pixel shift, no floor.
+    - model.view_opacity False: one opacity for every view (ours: one that varies with the
+      direction, so that an edge most views cannot see is not trained away).
     """
     return with_values(full(), {"loss.weighting": "exp", "init.method": "uniform", "init.count": 2500,
                                 "maps.edge_profile": "raw", "maps.silhouette_correction": "none",
-                                "maps.correction": "none", "maps.floor": 0.0})
+                                "maps.correction": "none", "maps.floor": 0.0, "model.view_opacity": False})
 
 
 PRESETS = {
