@@ -123,7 +123,7 @@ def test_demo_trains_extracts_and_scores_the_builtin_part(tmp_path):
     report = json.loads((run / "extract.json").read_text())
     curves = report["metrics"]["curves"]
     assert "curves " in result.stdout and "F10" in result.stdout
-    # The benchmark (docs/BENCHMARKS.md) measures F10 >= 90 on this part; a regression guard here.
+    # `make demo` scores F10 about 90 on this part (89.9 with the view-dependent opacity); a guard.
     assert curves["fscore_10mm"] >= 85, curves
     assert 5 <= report["counts"]["lines"] + report["counts"]["beziers"] <= 80
     again = edgedog("demo", "--cache", tmp_path, "--quiet")
