@@ -198,8 +198,10 @@ class EdgePrimitives:
     """Primitives as oriented edge points, what curve extraction reads (float64).
 
     points: (N, 3) centres; directions: (N, 3) unit axes of the largest scale; elongation: (N,)
-    largest / middle scale; opacity: (N,); k: (N, 2) DoG shape; uncertainty: (N,) or None;
-    layers: (N,) int64 layer index or None (a single-layer run).
+    largest / middle scale; opacity: (N,) (with a view-dependent opacity, the largest over the
+    training views); k: (N, 2) DoG shape; uncertainty: (N,) or None; layers: (N,) int64 layer
+    index or None (a single-layer run); opacity_dirs: (N, 3) b of a view-dependent opacity, or
+    None.
     """
 
     points: np.ndarray
@@ -209,6 +211,7 @@ class EdgePrimitives:
     k: np.ndarray
     uncertainty: np.ndarray | None = None
     layers: np.ndarray | None = None
+    opacity_dirs: np.ndarray | None = None
 
     @classmethod
     def from_arrays(cls, primitives: PrimitiveArrays) -> EdgePrimitives:
@@ -219,9 +222,10 @@ class EdgePrimitives:
         ordered = np.sort(scales, axis=1)
         elongation = ordered[:, 2] / np.maximum(ordered[:, 1], 1e-12)
         uncertainty = None if primitives.uncertainty is None else primitives.uncertainty.astype(np.float64)
+        dirs = None if primitives.opacity_dirs is None else primitives.opacity_dirs.astype(np.float64)
         return cls(primitives.means.astype(np.float64), directions, elongation,
                    primitives.opacity.astype(np.float64), primitives.k_raw.astype(np.float64), uncertainty,
-                   primitives.layers)
+                   primitives.layers, dirs)
 
     def __len__(self) -> int:
         return len(self.points)

@@ -233,6 +233,56 @@ def test_mean_edge_value_counts_unseen_views_as_zero():
     assert keep.tolist() == [True, False]
 
 
+class _RingScene(_TwoViewScene):
+    """Ten views on a ring around the origin, all looking at it; only view 0 draws an edge there
+    (0.8), as a concave corner that the other views cannot see."""
+
+    def __init__(self):
+        K = intrinsics(50.0, 50.0, 49.5, 49.5)
+        angles = np.linspace(0, 2 * np.pi, 10, endpoint=False)
+        eyes = [[3 * np.sin(a), -3 * np.cos(a), 0.5] for a in angles]
+        self.cameras = [Camera(K, w2c_from_opengl_c2w(look_at_gl(eye, [0, 0, 0])), 100, 100) for eye in eyes]
+        self.maps = [np.zeros((100, 100), np.float32) for _ in angles]
+        self.maps[0][45:55, 45:55] = 0.8
+
+    def __len__(self):
+        return len(self.cameras)
+
+
+def _sigmoid(x):
+    return 1 / (1 + np.exp(-x))
+
+
+def test_view_weights_are_the_opacity_per_view_over_its_largest():
+    scene = _RingScene()
+    centres = np.stack([c.center for c in scene.cameras])
+    points = np.array([[0.0, 0.0, 0.0], [0.1, -0.2, 0.05]])
+    a, b = np.array([0.5, -1.0]), np.array([[0.0, -3.0, 0.0], [2.0, 1.0, -0.5]])
+    d = centres[:, None] - points[None]
+    d /= np.linalg.norm(d, axis=2, keepdims=True)
+    per_view = _sigmoid(a[None] + np.einsum("vnk,nk->vn", d, b))  # (V, N) opacity in each view
+    weights = filtering.view_weights(points, per_view.max(axis=0), b, centres)
+    np.testing.assert_allclose(weights, per_view / per_view.max(axis=0), rtol=1e-9)
+    assert np.allclose(weights.max(axis=0), 1.0)
+    # Without a view-dependent part every view counts fully.
+    np.testing.assert_allclose(filtering.view_weights(points, _sigmoid(a), np.zeros_like(b), centres), 1.0)
+
+
+def test_projection_filter_over_drawn_views_keeps_an_edge_few_views_see():
+    scene = _RingScene()
+    centres = np.stack([c.center for c in scene.cameras])
+    corner = np.zeros((2, 3))  # the same point twice: an edge, and a ghost that no view draws
+    dirs = np.array([centres[0] / np.linalg.norm(centres[0]) * 6.0] * 2)  # drawn towards view 0 only
+    opacity = _sigmoid(np.array([0.0, 0.0]) + 6.0)
+    weights = filtering.view_weights(corner, opacity, dirs, centres)
+    assert weights[0].min() > 0.99 and weights[5].max() < 0.01
+    # Averaged over all ten views the edge (0.8 in one) scores 0.08 and is dropped.
+    assert filtering.projection_mask(corner[:1], scene, "exact", 0.1).tolist() == [False]
+    assert filtering.projection_mask(corner[:1], scene, "exact", 0.1, weights[:, :1]).tolist() == [True]
+    scene.maps[0][:] = 0.0  # no view draws anything there: dropped either way
+    assert filtering.projection_mask(corner, scene, "exact", 0.1, weights).tolist() == [False, False]
+
+
 class _MaskedScene(_TwoViewScene):
     """View 0's object mask is the 10 columns 45-54 (1 px = 0.06 world units at the origin);
     view 1's image cannot be read."""

@@ -125,7 +125,12 @@ def filter_primitives(primitives: EdgePrimitives, config: ExtractConfig, scene: 
         primitives = primitives.subset(filtering.opacity_mask(primitives.opacity, config.min_opacity))
         counts["after_opacity"] = len(primitives)
     if config.filter_projection:
-        keep = filtering.projection_mask(primitives.points, scene, detector, config.min_edge_value)
+        weights = None
+        if config.projection_views == "drawn" and primitives.opacity_dirs is not None:
+            centres = np.stack([scene.camera(i).center for i in range(len(scene))])
+            weights = filtering.view_weights(primitives.points, primitives.opacity, primitives.opacity_dirs,
+                                             centres)
+        keep = filtering.projection_mask(primitives.points, scene, detector, config.min_edge_value, weights)
         primitives = primitives.subset(keep)
         counts["after_projection"] = len(primitives)
     # Each point's silhouette test is its own: taken now, it is the same after the outlier filter.

@@ -16,22 +16,51 @@ def opacity_mask(opacity: np.ndarray, min_opacity: float) -> np.ndarray:
     return opacity > min_opacity
 
 
-def mean_edge_values(points: np.ndarray, scene: Scene, detector: str) -> np.ndarray:
+def view_weights(points: np.ndarray, opacity: np.ndarray, opacity_dirs: np.ndarray,
+                 centres: np.ndarray) -> np.ndarray:
+    """(V, N) each primitive's opacity in each view divided by its largest over the views: 1
+    where it is drawn most, near 0 where its view-dependent opacity hides it (training's
+    `edgedog.train.view_opacity.relative_opacity`, from what primitives.ply holds: the largest
+    opacity instead of the logit a).
+
+    Args:
+        points: (N, 3) centres; opacity: (N,) the largest opacity over the views of `centres`
+            (V, 3), as primitives.ply holds it; opacity_dirs: (N, 3) b, the logit in a view being
+            a + b . d (d the unit direction to its camera).
+    """
+    offsets = centres[:, None, :] - points[None, :, :]
+    unit = offsets / np.maximum(np.linalg.norm(offsets, axis=2, keepdims=True), 1e-12)
+    tilt = np.einsum("vnk,nk->vn", unit, opacity_dirs)  # b . d per view
+    clipped = np.clip(opacity, 1e-12, 1 - 1e-12)
+    largest = np.log(clipped) - np.log1p(-clipped)  # the largest logit, a + max over views of b . d
+    logits = largest[None, :] - (tilt.max(axis=0)[None, :] - tilt)
+    return 1.0 / (1.0 + np.exp(-logits)) / clipped[None, :]
+
+
+def mean_edge_values(points: np.ndarray, scene: Scene, detector: str,
+                     weights: np.ndarray | None = None) -> np.ndarray:
     """Edge-map value under each point (N, 3), averaged over all views of the scene; (N,).
 
     A view that does not see a point contributes 0, so points seen by few views score low.
+    `weights` (V, N), e.g. `view_weights`: a weighted mean instead, each view counting by its
+    weight (a view the point projects outside of still counts its weight, with 0).
     """
     total = np.zeros(len(points))
     for i in range(len(scene)):
         pixels, inside = scene.camera(i).pixels(points)
         edge_map = scene.load_edge_map(i, detector)
-        total[inside] += edge_map[pixels[inside, 1], pixels[inside, 0]]
-    return total / max(len(scene), 1)
+        values = edge_map[pixels[inside, 1], pixels[inside, 0]]
+        total[inside] += values if weights is None else weights[i, inside] * values
+    if weights is None:
+        return total / max(len(scene), 1)
+    return total / np.maximum(weights.sum(axis=0), 1e-12)
 
 
-def projection_mask(points: np.ndarray, scene: Scene, detector: str, min_edge_value: float) -> np.ndarray:
-    """Keep the points (N, 3) whose mean edge value over all views is above `min_edge_value`."""
-    return mean_edge_values(points, scene, detector) > min_edge_value
+def projection_mask(points: np.ndarray, scene: Scene, detector: str, min_edge_value: float,
+                    weights: np.ndarray | None = None) -> np.ndarray:
+    """Keep the points (N, 3) whose mean edge value over all views (weighted by `weights` (V, N)
+    if given) is above `min_edge_value`."""
+    return mean_edge_values(points, scene, detector, weights) > min_edge_value
 
 
 def pixels_outside_masks(points: np.ndarray, scene: Scene) -> np.ndarray | None:
