@@ -30,10 +30,14 @@ def visible_members(snapshot, shown: Mapping[str, bool]) -> np.ndarray:
 def visible_subset(snapshot, shown: Mapping[str, bool]):
     """A copy of the snapshot with the primitives of the shown layers only."""
     members = visible_members(snapshot, shown)
-    return dataclasses.replace(snapshot, means=snapshot.means[members], scales=snapshot.scales[members],
-                               quats=snapshot.quats[members], opacity=snapshot.opacity[members],
-                               k_raw=snapshot.k_raw[members],
-                               layers=None if snapshot.layers is None else snapshot.layers[members])
+
+    def rows(array):  # every per-primitive array; the optional ones (layers, b) may be None
+        return None if array is None else array[members]
+
+    return dataclasses.replace(snapshot, means=rows(snapshot.means), scales=rows(snapshot.scales),
+                               quats=rows(snapshot.quats), opacity=rows(snapshot.opacity),
+                               k_raw=rows(snapshot.k_raw), layers=rows(snapshot.layers),
+                               opacity_dirs=rows(snapshot.opacity_dirs))
 
 
 def selection(snapshot, shown: Mapping[str, bool]) -> str:

@@ -3,6 +3,7 @@ selections, the folder browser's listing, the scripted keys, and what an aborted
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from pathlib import Path
 
@@ -43,6 +44,16 @@ def test_the_layers_shown_name_a_selection_and_its_finest_layer():
     assert len(visible_subset(snapshot, hidden).means) == 0
     assert export_path(Path("run"), 12, "obj", "L0+L1") == Path("run/exports/curves_step000012_L0+L1.obj")
     assert export_path(Path("run"), 12, "obj") == Path("run/exports/curves_step000012.obj")
+
+
+def test_a_layer_selection_keeps_every_per_primitive_array_aligned():
+    """The view-dependent opacity's b goes with its primitives (extraction reads it)."""
+    dirs = np.arange(15.0).reshape(5, 3)
+    snapshot = dataclasses.replace(snapshot_of_layers([0, 1, 0, 1, 1]), opacity_dirs=dirs)
+    only_l1 = visible_subset(snapshot, {"L0": False})
+    np.testing.assert_array_equal(only_l1.opacity_dirs, snapshot.opacity_dirs[[1, 3, 4]])
+    primitives = only_l1.primitives
+    assert {len(getattr(primitives, name)) for name in ("means", "opacity", "opacity_dirs")} == {3}
 
 
 def test_the_folder_browser_lists_folders_and_says_what_they_are(tmp_path):
