@@ -221,7 +221,8 @@ class TrainingWorker:
                 continue
             self.phase = TRAINING
             started = time.perf_counter()
-            losses.append(trainer.step())
+            trainer.step()
+            losses.append(trainer.last_loss)
             stepped = True
             now = time.perf_counter()
             with self._lock:

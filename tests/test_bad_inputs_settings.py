@@ -50,8 +50,8 @@ def bench_raster(*options: str, words: list[str]) -> Case:
 
 
 CASES = [
-    # periods of 0 divided by zero once training had started (orientation_every and snapshot_every
-    # too: every field's range is in test_config_ranges.py)
+    # periods of 0 divided by zero once training had started (orientation_every too: every
+    # field's range is in test_config_ranges.py)
     setting("checkpoint_every=0", "run.checkpoint_every must be an integer >= 1"),
     setting("fisher_every=0", "fisher_every"),
     setting("sampled_loss_every=0", "loss.sampled_every"),

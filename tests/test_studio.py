@@ -97,7 +97,7 @@ class FakeTrainer:
     def epoch(self) -> int:
         return self.step_index
 
-    def step(self) -> float:
+    def step(self) -> None:
         self.in_step = True
         self.seen.append(self.controls.read()[:2])
         time.sleep(self.step_seconds)
@@ -105,6 +105,9 @@ class FakeTrainer:
             raise RuntimeError("the loss is NaN")
         self.step_index += 1
         self.in_step = False
+
+    @property
+    def last_loss(self) -> float:
         return 1.0 / self.step_index
 
     def snapshot(self, loss: float = float("nan")) -> Snapshot:

@@ -16,7 +16,7 @@ from edgedog.train.config import TrainConfig, for_detector, preset, with_epochs,
 from edgedog.train.model import GROUPS, EdgeModel
 from edgedog.train.optim import Optimizers, learning_rates
 from edgedog.train.resolution import ViewSet
-from edgedog.train.trainer import Trainer, _finite_grads
+from edgedog.train.trainer import Trainer
 from edgedog.train.view_opacity import camera_centres, largest_logits
 from tests.helpers.backends import KERNEL_DEVICES, each_device
 from tests.helpers.paths import shared_path
@@ -28,7 +28,7 @@ def small_config(**changes) -> TrainConfig:
         "downscale": 4, "epochs": 6, "init.count": 400, "duplicate_epochs": (1, 3),
         "cull_projection_epochs": (2,), "cull_opacity_epochs": (4,), "fisher_every": 2,
         "loss.sampled_from_epoch": 1, "ratio_from_epoch": 1, "direction_from_epoch": 2,
-        "checkpoint_every": 3, "snapshot_every": 5, "init.side": 0.8})
+        "checkpoint_every": 3, "init.side": 0.8})
     return with_settings(base, changes)
 
 
@@ -107,7 +107,7 @@ def test_density_control_events_and_outputs(box, tmp_path):
     logged = json.loads((tmp_path / "run" / "log.json").read_text())["config"]  # resolved for the maps
     assert (logged["loss"]["direction_factor"], logged["loss"]["ratio_factor"],
             logged["maps"]["edge_profile"]) == (0.1, 0.05, "raw")
-    snap = trainer.latest_snapshot
+    snap = trainer.snapshot()
     assert snap.means.shape == (len(trainer.model), 3) and snap.step == trainer.step_index
     # primitives.ply holds the final snapshot's activated arrays, which invert to the parameters
     # (the opacity to its logit's largest over the views).
@@ -284,6 +284,27 @@ def test_the_sampled_loss_at_the_extremes():
     assert sorted(sample.tolist()) == list(range(30))
 
 
+def test_the_direction_losss_neighbours_are_reused_within_an_epoch(box, tmp_path, monkeypatch):
+    """`loss.neighbours_every`: the k-d tree is searched every so many direction steps and anew
+    after each epoch's density events (which renumber the primitives)."""
+    searches = []
+    search = losses.nearest_neighbours
+
+    def counted(model, k):
+        searches.append(len(model))
+        return search(model, k)
+
+    monkeypatch.setattr(losses, "nearest_neighbours", counted)
+    views = len(box)
+    for every in (1, 5):
+        searches.clear()
+        config = small_config(epochs=5, direction_from_epoch=2, orientation_every=1, neighbours_every=every)
+        trainer = Trainer(box, config, tmp_path / f"every-{every}", progress=False)
+        trainer.run()
+        assert len(searches) == 3 * -(-views // every)  # 3 epochs with the loss on, a step a view
+        assert any(event["epoch"] >= 2 for event in trainer.events)  # the count changed between epochs
+
+
 def test_a_view_without_edges_keeps_the_full_loss(box, tmp_path):
     trainer = Trainer(box, small_config(epochs=3, sampled_every=1), tmp_path / "run", progress=False)
     views = trainer.views
@@ -294,15 +315,6 @@ def test_a_view_without_edges_keeps_the_full_loss(box, tmp_path):
     assert len(trainer.views.edge_pixels[0]) == 0
     assert all(np.isfinite(epoch["loss"]) for epoch in trainer.history)
     assert trainer.bad_gradients == 0
-
-
-def test_non_finite_gradients_never_reach_the_parameters(box, tmp_path):
-    trainer = Trainer(box, small_config(epochs=1), tmp_path / "run", progress=False)
-    trainer.model.means.grad = torch.zeros_like(trainer.model.means)
-    trainer.model.means.grad[3] = float("nan")
-    trainer.model.quats.grad = torch.full_like(trainer.model.quats, float("inf"))
-    assert _finite_grads(trainer.model) == 3 + trainer.model.quats.numel()
-    assert torch.isfinite(trainer.model.means.grad).all() and (trainer.model.quats.grad == 0).all()
 
 
 def test_config_overrides():
@@ -346,7 +358,7 @@ def test_with_epochs_stretches_the_whole_schedule():
     assert half.loss.direction_from_epoch == 125 and half.maps.shift_from_epoch == 50
     assert half.run.checkpoint_every == 25 and half.schedule.lr_means_decay_epochs == (5, 10, 15, 20, 25)
     assert half.strategy.duplicate_epochs[0] == 20 and half.strategy.cull_opacity_epochs == (62, 155)
-    assert (half.loss.sampled_every, half.run.snapshot_every) == (5, 25)  # periods in steps stay
+    assert (half.loss.sampled_every, half.loss.orientation_every) == (5, 5)  # periods in steps stay
     assert half.schedule.fine_from_epoch == 0  # from the start stays from the start
     early = with_epochs(with_overrides(full, ["loss.sampled_from_epoch=0", "loss.ratio_from_epoch=1"]), 100)
     assert (early.loss.sampled_from_epoch, early.loss.ratio_from_epoch) == (0, 1)

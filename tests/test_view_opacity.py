@@ -137,6 +137,8 @@ def test_the_cap_bounds_b_and_the_largest_logit_is_over_the_views():
     dirs = torch.tensor([[3.0, 4.0, 0.0], [0.1, 0.0, 0.0], [0.0, 0.0, 0.0]])
     cap_(dirs, 2.0)
     torch.testing.assert_close(dirs, torch.tensor([[1.2, 1.6, 0.0], [0.1, 0.0, 0.0], [0.0, 0.0, 0.0]]))
+    # Rows within the cap are multiplied by exactly 1.
+    assert torch.equal(dirs[1:], torch.tensor([[0.1, 0.0, 0.0], [0.0, 0.0, 0.0]]))
     centres = torch.tensor([[10.0, 0, 0], [0, 10.0, 0]])
     largest = largest_logits(torch.zeros(3), dirs, torch.zeros(3, 3), centres)
     torch.testing.assert_close(largest, torch.tensor([1.6, 0.1, 0.0]))

@@ -5,8 +5,10 @@ of steps through it (the model's size changes over a run, so one window would no
 Each step's stages are labelled in `Trainer.step` (`record_function`): the table gives each
 stage's time per step (inclusive of the operators it calls) and the rest of the step (Python and
 autograd glue between the stages), then the operators with the most time of their own, our
-rasterizer's kernels among them. The profiler itself slows the recorded steps a little; the run's
-own training time (log.json) is reported beside them.
+rasterizer's kernels among them. On a GPU the profiler records the device too: the kernels' time
+per step, those with the most, and the kernel launches per step (a step there is bound by the
+host's launches, not by the kernels). The profiler itself slows the recorded steps a
+little; the run's own training time (log.json) is reported beside them.
 """
 
 from __future__ import annotations
@@ -25,11 +27,13 @@ from edgedog.files import atomic_write_bytes, atomic_write_json
 from edgedog.train.config import TrainConfig
 
 STAGES = ("rasterize", "pixel uncertainty", "loss", "backward", "density statistics", "adam",
-          "orientation losses", "density control", "checkpoint", "snapshot")
+          "orientation losses", "density control", "checkpoint")
 """The labels of `Trainer.step`, in the order a step runs them."""
 STEP_PREFIX = "ProfilerStep"
 """torch.profiler's label of each recorded step ("ProfilerStep*" in its averages)."""
 TOP_OPERATORS = 15
+LAUNCHES = ("cudaLaunchKernel", "cudaLaunchKernelExC", "cuLaunchKernel", "cuLaunchKernelEx")
+"""The host-side events of a kernel launch (the runtime's and the driver's)."""
 MAX_WINDOWS = 100
 STEPS_FILES = ("steps.json", "steps.md")
 """What the bench writes into OUT beside OUT/run, its record first."""
@@ -42,7 +46,8 @@ class StepProfile:
 
     steps: steps recorded; step_seconds: their wall time; stages: label -> inclusive time;
     operators: operator -> its own time (self CPU); train_seconds, total_steps: the whole run's
-    training time (profiled steps included) and step count.
+    training time (profiled steps included) and step count. With the device recorded (`device`):
+    kernels, kernel -> its time on the device; launches, kernel launches.
     """
 
     steps: int = 0
@@ -51,6 +56,9 @@ class StepProfile:
     operators: dict[str, float] = field(default_factory=lambda: defaultdict(float))
     train_seconds: float = 0.0
     total_steps: int = 0
+    device: bool = False
+    kernels: dict[str, float] = field(default_factory=lambda: defaultdict(float))
+    launches: int = 0
 
     def add_window(self, events) -> None:
         """Add one recorded window (`prof.key_averages()`)."""
@@ -61,6 +69,12 @@ class StepProfile:
                 self.step_seconds += seconds
             elif event.key in STAGES:
                 self.stages[event.key] += seconds
+            elif event.key in LAUNCHES:
+                self.launches += event.count
+            elif event.is_user_annotation:  # the device's span of a label: idle gaps included
+                continue
+            elif event.self_cpu_time_total == 0 and event.self_device_time_total > 0:  # a kernel
+                self.kernels[event.key] += event.self_device_time_total / 1e6
             else:
                 self.operators[event.key] += event.self_cpu_time_total / 1e6
 
@@ -74,14 +88,25 @@ class StepProfile:
                 for stage, seconds in named]
 
     def top_operators(self, count: int = TOP_OPERATORS) -> list[dict]:
-        per_step = 1000 / max(self.steps, 1)
-        ranked = sorted(self.operators.items(), key=lambda item: -item[1])[:count]
-        return [{"operator": name, "ms_per_step": seconds * per_step} for name, seconds in ranked]
+        return _top(self.operators, "operator", self.steps, count)
+
+    def top_kernels(self, count: int = TOP_OPERATORS) -> list[dict]:
+        return _top(self.kernels, "kernel", self.steps, count)
 
     def to_dict(self) -> dict:
+        per_step = 1 / max(self.steps, 1)
+        device = ({"launches_per_step": self.launches * per_step,
+                   "kernel_ms_per_step": sum(self.kernels.values()) * 1000 * per_step,
+                   "kernels": self.top_kernels()} if self.device else {})
         return {"recorded_steps": self.steps, "recorded_seconds": self.step_seconds,
                 "train_seconds": self.train_seconds, "total_steps": self.total_steps,
-                "stages": self.rows(), "operators": self.top_operators()}
+                "stages": self.rows(), "operators": self.top_operators(), **device}
+
+
+def _top(seconds_by_name: dict[str, float], label: str, steps: int, count: int) -> list[dict]:
+    """The `count` names with the most seconds, each with its ms per step."""
+    ranked = sorted(seconds_by_name.items(), key=lambda item: -item[1])[:count]
+    return [{label: name, "ms_per_step": seconds * 1000 / max(steps, 1)} for name, seconds in ranked]
 
 
 def window_schedule(total_steps: int, windows: int, window_steps: int):
@@ -102,9 +127,11 @@ def profile_training(run, windows: int, window_steps: int) -> StepProfile:
     windows of `window_steps` steps, then write its outputs as `edgedog train` does."""
     trainer = run.current()
     total = trainer.total_steps - trainer.step_index
-    result = StepProfile(total_steps=total)
+    on_gpu = trainer.device.type == "cuda"
+    result = StepProfile(total_steps=total, device=on_gpu)
+    activities = [ProfilerActivity.CPU] + ([ProfilerActivity.CUDA] if on_gpu else [])
     with warnings.catch_warnings(), profile(
-            activities=[ProfilerActivity.CPU], schedule=window_schedule(total, windows, window_steps),
+            activities=activities, schedule=window_schedule(total, windows, window_steps),
             on_trace_ready=lambda prof: result.add_window(prof.key_averages())) as prof:
         # Each window is read when it ends, so that the profiler may forget it, as it warns it does.
         warnings.filterwarnings("ignore", message="Profiler clears events")
@@ -142,10 +169,18 @@ def markdown(summary: dict) -> str:
     lines = [f"{steps} of {total} steps recorded ({recorded_ms:.1f} ms per recorded step; the run: "
              f"{seconds:.1f} s training, {seconds * 1000 / max(total, 1):.1f} ms per step, "
              f"{summary['threads']} threads).",
-             "", "| stage | ms per step | share |", "|---|---|---|"]
+             ""]
+    device = "kernels" in summary
+    if device:
+        lines += [f"On the device, per step: {summary['kernel_ms_per_step']:.2f} ms of kernels, "
+                  f"{summary['launches_per_step']:.1f} kernel launches.", ""]
+    lines += ["| stage | ms per step | share |", "|---|---|---|"]
     for row in summary["stages"]:
         share = None if row["share"] is None else 100 * row["share"]
         lines.append(f"| {row['stage']} | {cell(row['ms_per_step'], 2)} | {cell(share, 1)} % |")
-    lines += ["", "| operator (own time) | ms per step |", "|---|---|"]
+    lines += ["", "| operator (own host time) | ms per step |", "|---|---|"]
     lines += [f"| `{row['operator']}` | {cell(row['ms_per_step'], 2)} |" for row in summary["operators"]]
+    if device:
+        lines += ["", "| kernel | ms per step |", "|---|---|"]
+        lines += [f"| `{row['kernel'][:90]}` | {cell(row['ms_per_step'], 3)} |" for row in summary["kernels"]]
     return "\n".join(lines) + "\n"

@@ -268,6 +268,10 @@ class LossSettings(Settings):
     direction_neighbours: Annotated[int, Range(2, MAX_NEIGHBOURS)] = 5
     """Neighbours whose directions a primitive's major axis is aligned with (the extraction's
     principal axes take as many, the point itself included)."""
+    neighbours_every: Every = 1
+    """The direction loss's neighbours are searched anew every this many of its steps and after
+    each epoch's density events; the steps between reuse the last search's (the centres move
+    little within an epoch; the search, a k-d tree on the host, is most of the loss's time)."""
     direction_factor: Annotated[float | None, Range(0)] = None
     """Direction loss weight: the term is scaled to this fraction of the running sum of the epoch's
     projection losses, as EdgeGaussians does; None: theirs for the maps' detector (0.01 for
@@ -376,8 +380,6 @@ class RunSettings(Settings):
     """Seed of every random draw of the run (the same seed and threads: the same run)."""
     checkpoint_every: EpochPeriod = 50
     """Epochs between checkpoints (one is always written at the end)."""
-    snapshot_every: Every = 25
-    """Steps between the snapshots published to a viewer."""
     damaged_views: Literal["refuse", "skip"] = "refuse"
     """Views whose image cannot be read (cut short, undecodable): 'refuse' the scene, naming the
     first such file; 'skip' train on the other views (log.json lists the views left out)."""
@@ -449,6 +451,10 @@ def is_flat(values: Any) -> bool:
     return isinstance(values, dict) and bool(values) and not sections & set(values)
 
 
+RETIRED = ("run.snapshot_every",)
+"""Settings that no longer exist and changed nothing a run computes: a saved config's value of one
+is dropped when it is read."""
+
 ABSENT_MEANS = {"model.view_opacity": False}
 """Settings whose default changed after they were added: a saved config that lacks one was
 written before it existed, and its run trained as this value, not as today's default."""
@@ -458,11 +464,24 @@ def from_dict(values: Any) -> TrainConfig:
     """A config from `to_dict`'s output (a run folder's config.json, log.json, a checkpoint), or
     from the flat dict of a run written before the sections (migrated through `RENAMED`).
     Settings it lacks (written before they existed) take their defaults, or their `ABSENT_MEANS`
-    value; an unknown or bad one raises ConfigError naming it."""
+    value; one in `RETIRED` is dropped; an unknown or bad one raises ConfigError naming it."""
     if not is_flat(values):
-        return settings_from_dict(TrainConfig, values, ABSENT_MEANS)
+        return settings_from_dict(TrainConfig, _without_retired(values), ABSENT_MEANS)
+    flat = {name: value for name, value in values.items() if f"run.{name}" not in RETIRED}
     return with_values(TrainConfig(), {**ABSENT_MEANS, **{setting_name(str(key)): value
-                                                          for key, value in values.items()}})
+                                                          for key, value in flat.items()}})
+
+
+def _without_retired(values: Any) -> Any:
+    """A sectioned config dict without the `RETIRED` settings (anything else as it is)."""
+    if not isinstance(values, dict):
+        return values
+    kept = dict(values)
+    for path in RETIRED:
+        section, name = path.split(".")
+        if isinstance(kept.get(section), dict) and name in kept[section]:
+            kept[section] = {key: value for key, value in kept[section].items() if key != name}
+    return kept
 
 
 def for_detector(config: TrainConfig, detector: str) -> TrainConfig:

@@ -10,8 +10,7 @@ the trainers one by one, `Run.trainers`, as the studio's worker does), extracts 
 folder that holds nothing trained (a start that failed or stopped before its first checkpoint) is
 removed.
 
-Trainers publish immutable snapshots (`Trainer.latest_snapshot`, `Trainer.snapshot`); a viewer
-reads those, never the run's live tensors.
+A viewer takes immutable snapshots of a trainer (`Trainer.snapshot`), never the run's live tensors.
 """
 
 from __future__ import annotations
@@ -118,7 +117,10 @@ class Run:
         trainer = self.current()
         if trainer is None:
             raise ValueError(f"{self.path}: every layer is trained")
-        loss = float("nan") if trainer.done else trainer.step()
+        loss = float("nan")
+        if not trainer.done:
+            trainer.step()
+            loss = trainer.last_loss
         if trainer.done:
             trainer.write_outputs()
             self._ended = True

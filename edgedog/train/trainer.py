@@ -1,7 +1,8 @@
 """The training loop, stepwise, with checkpoints, resume, live controls and snapshots.
 
-A viewer calls `step()` from a worker thread (or `run()`), reads `latest_snapshot` (immutable
-copies, never live tensors) and changes `controls`, which apply at the next step boundary.
+A viewer calls `step()` from a worker thread (or `run()`), takes `snapshot()`s (immutable copies,
+never live tensors) when it wants to draw and changes `controls`, which apply at the next step
+boundary.
 """
 
 from __future__ import annotations
@@ -38,6 +39,7 @@ from edgedog.train.layers import LowerLayers, keep_on_residual, lower_layer_conf
 from edgedog.train.model import EdgeModel
 from edgedog.train.occlusion import drawn_in_view, scene_occlusion
 from edgedog.train.optim import Optimizers
+from edgedog.train.readback import EpochLosses, zero_non_finite
 from edgedog.train.resolution import ViewSet, coarser
 from edgedog.train.strategy import DensityStrategy, StrategyState
 from edgedog.train.targets import (
@@ -102,20 +104,10 @@ class Snapshot:
                                opacity_dirs=self.opacity_dirs)
 
 
-def _finite_grads(*models: EdgeModel) -> int:
-    """Zero non-finite gradient entries (no NaN ever reaches the parameters); returns how many."""
+def _zero_bad_grads(*models: EdgeModel) -> int | torch.Tensor:
+    """Zero the models' non-finite gradient entries; returns how many (`readback.zero_non_finite`)."""
     grads = [t.grad for model in models for t in model.tensors().values() if t.grad is not None]
-    # Finite sums mean every entry is finite: one pass, no mask, and one read back to the host
-    # (one wait for a GPU) at almost every step.
-    if not grads or bool(torch.isfinite(torch.stack([g.sum() for g in grads])).all()):
-        return 0
-    bad = 0
-    for grad in grads:
-        mask = ~torch.isfinite(grad)
-        if mask.any():
-            bad += int(mask.sum())
-            grad[mask] = 0
-    return bad
+    return zero_non_finite(grads)
 
 
 def stack_snapshot(stack: LowerLayers, step: int = 0, epoch: int = 0, loss: float = float("nan"),
@@ -221,11 +213,14 @@ class Trainer:
         self.step_index = 0
         self.history: list[dict] = []
         self.events: list[dict] = []
-        self.bad_gradients = 0
+        # Non-finite gradient entries zeroed: an int, or a tensor on the run's device (`bad_gradients`).
+        self._bad_gradients: int | torch.Tensor = 0
         self.seconds = 0.0
-        self._epoch_losses: list[float] = []
+        self._epoch_losses = EpochLosses()
         self._order = torch.zeros(0, dtype=torch.long)
-        self.latest_snapshot: Snapshot | None = None
+        # The direction loss's (N, k) neighbours and how many of its steps have used them.
+        self._neighbours: torch.Tensor | None = None
+        self._neighbours_used = 0
         # The convergence test (schedule.stop), and where it ended the run (None: not stopped).
         self.convergence = None if config.schedule.stop == "off" else Convergence()
         self.stopped: dict | None = None
@@ -299,10 +294,10 @@ class Trainer:
         """Whether the run is over: its last epoch trained, or stopped when converged."""
         return self.stopped is not None or self.epoch >= self.config.schedule.epochs
 
-    def step(self) -> float:
+    def step(self) -> None:
         """One view: render, loss, backward, Adam; density control at the end of an epoch.
 
-        Returns the projection loss of the step.
+        The step's projection loss stays on the run's device (`last_loss` reads it).
         """
         c, epoch, position = self.config.loss, self.epoch, self.step_index % len(self.cameras)
         keep_ratio, weighting, _ = self.controls.read()
@@ -312,7 +307,7 @@ class Trainer:
             self.optimizers.set_epoch(epoch)
             if self.lower_optimizers is not None:
                 self.lower_optimizers.set_epoch(epoch)
-            self._epoch_losses = []
+            self._epoch_losses = EpochLosses()
         view = int(self._order[position])
         views = self.views_at(epoch)
         # The stages' names label the step for `edgedog bench steps` (torch.profiler); outside a
@@ -348,7 +343,7 @@ class Trainer:
         with record_function("backward"):
             loss.backward()
         with record_function("density statistics"):
-            self.bad_gradients += _finite_grads(self.model, self.lower.model)
+            self._bad_gradients += _zero_bad_grads(self.model, self.lower.model)
             self.strategy.after_backward(self.state, out, skip=len(self.lower))
         with record_function("adam"):
             for optimizers in (self.optimizers, self.lower_optimizers, self.learned_shift):
@@ -357,8 +352,9 @@ class Trainer:
                     optimizers.zero_grad()
             if self.centres is not None:
                 for model in (self.model, self.lower.model):
-                    cap_(model.opacity_dirs, self.config.model.view_opacity_cap)
-            self._epoch_losses.append(loss.item())
+                    if len(model):
+                        cap_(model.opacity_dirs, self.config.model.view_opacity_cap)
+            self._epoch_losses.append(loss)
         if self.step_index % c.orientation_every == 0:
             with record_function("orientation losses"):
                 self._orientation_losses(epoch)
@@ -366,10 +362,17 @@ class Trainer:
         self.seconds += time.perf_counter() - started
         if position == len(self.cameras) - 1:
             self._end_epoch(epoch, keep_ratio)
-        if self.step_index % self.config.run.snapshot_every == 0 or self.done:
-            with record_function("snapshot"):
-                self.latest_snapshot = self.snapshot(self._epoch_losses[-1])
-        return self._epoch_losses[-1]
+
+    @property
+    def last_loss(self) -> float:
+        """The latest step's projection loss (NaN before this epoch's first step); on a GPU,
+        reading it waits for the queued work."""
+        return self._epoch_losses.last()
+
+    @property
+    def bad_gradients(self) -> int:
+        """Non-finite gradient entries zeroed so far (on a GPU, reading waits for the queued work)."""
+        return int(self._bad_gradients)
 
     def _stacked_dirs(self) -> torch.Tensor:
         """(N, 3) b of the lower layers' primitives and this run's, in the render's order."""
@@ -385,19 +388,27 @@ class Trainer:
         """EdgeGaussians' direction and scale-ratio terms, each weighted to `factor` times the
         running sum of the epoch's projection losses and stepped on the geometry alone."""
         c = self.config.loss
-        # EdgeGaussians' balance: the sum of this epoch's projection losses so far, times the factor.
-        running = float(np.sum(self._epoch_losses))
         terms = []
         if epoch >= c.ratio_from_epoch:
             terms.append((c.ratio_factor, lambda: losses.ratio_loss(self.model)))
         if epoch >= c.direction_from_epoch and len(self.model) > c.direction_neighbours:
-            neighbours = losses.nearest_neighbours(self.model, c.direction_neighbours)
+            if (self._neighbours is None or self._neighbours_used >= c.neighbours_every
+                    or len(self._neighbours) != len(self.model)):
+                self._neighbours, self._neighbours_used = losses.nearest_neighbours(self.model,
+                                                                                    c.direction_neighbours), 0
+            self._neighbours_used += 1
+            neighbours = self._neighbours
             terms.append((c.direction_factor, lambda: losses.direction_loss(self.model, neighbours)))
+        if not terms:
+            return
+        # EdgeGaussians' balance: the sum of this epoch's projection losses so far, times the factor.
+        running = self._epoch_losses.sum()
         for factor, term in terms:
             value = term()
-            if value.item() > 0:
-                (factor * running / value.item() * value).backward()
-                self.bad_gradients += _finite_grads(self.model)
+            size = value.item()
+            if size > 0:
+                (factor * running / size * value).backward()
+                self._bad_gradients += _zero_bad_grads(self.model)
                 self.optimizers.step()  # the terms have gradients in the geometry groups only
                 self.optimizers.zero_grad()
 
@@ -409,7 +420,8 @@ class Trainer:
             events = self.strategy.at_epoch_end(epoch, self.model, self.optimizers, self.state, self.views,
                                                 self.generator, keep_ratio)
         self.events += events
-        entry = {"epoch": epoch, "loss": float(np.mean(self._epoch_losses)),
+        self._neighbours = None  # the events renumber the primitives
+        entry = {"epoch": epoch, "loss": self._epoch_losses.mean(),
                  "primitives_before_events": before, "primitives": len(self.model)}
         if self.convergence is not None:
             with record_function("convergence"):
@@ -458,10 +470,11 @@ class Trainer:
                 if self.controls.read()[2]:
                     time.sleep(0.05)
                     continue
-                loss = self.step()
+                self.step()
                 bar.update(self.step_index - bar.n)  # a coarse stage ended early skips steps
                 if self.step_index % 25 == 0:
-                    bar.set_postfix(epoch=self.epoch, loss=f"{loss:.4f}", primitives=len(self.model))
+                    bar.set_postfix(epoch=self.epoch, loss=f"{self.last_loss:.4f}",
+                                    primitives=len(self.model))
         self.write_outputs()
 
     # --- snapshots, checkpoints, outputs
@@ -528,7 +541,7 @@ class Trainer:
             self.pixel_generator.set_state(pixel_state)
         self.step_index = int(saved["step_index"])
         self.history, self.events = saved["history"], saved["events"]
-        self.seconds, self.bad_gradients = float(saved["seconds"]), int(saved["bad_gradients"])
+        self.seconds, self._bad_gradients = float(saved["seconds"]), int(saved["bad_gradients"])
         self.init_report, self.initial_count = saved["init_report"], int(saved["initial_count"])
         if self.convergence is not None:  # the same config: a checkpoint written with the test on
             self.convergence = Convergence.from_state_dict(saved["convergence"], self.device)

@@ -93,5 +93,5 @@ def relative_opacity(logits: torch.Tensor, dirs: torch.Tensor, means: torch.Tens
 def cap_(dirs: torch.Tensor, cap: float) -> None:
     """Shrink in place every row of b (N, 3) longer than `cap` to length `cap`."""
     with torch.no_grad():
-        length = dirs.norm(dim=1, keepdim=True)
-        dirs.mul_(torch.where(length > cap, cap / length.clamp_min(MIN_DISTANCE), torch.ones_like(length)))
+        # min(cap / length, 1): a row within the cap is multiplied by exactly 1.
+        dirs.mul_((cap / dirs.norm(dim=1, keepdim=True).clamp_min(MIN_DISTANCE)).clamp_max(1.0))

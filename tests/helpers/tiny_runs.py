@@ -36,7 +36,7 @@ def tiny_config(**changes) -> TrainConfig:
     base = with_settings(preset("preview"), {
         "downscale": 4, "epochs": 2, "init.count": 300, "init.side": 0.8, "init.method": "uniform",
         "duplicate_epochs": (), "cull_projection_epochs": (), "cull_opacity_epochs": (), "fisher_every": 100,
-        "opacity_from_epoch": 0, "checkpoint_every": 2, "snapshot_every": 5})
+        "opacity_from_epoch": 0, "checkpoint_every": 2})
     return with_settings(base, changes)
 
 
