@@ -472,7 +472,7 @@ class Trainer:
                     continue
                 self.step()
                 bar.update(self.step_index - bar.n)  # a coarse stage ended early skips steps
-                if self.step_index % 25 == 0:
+                if self.progress and self.step_index % 25 == 0:  # on a GPU, reading the loss waits
                     bar.set_postfix(epoch=self.epoch, loss=f"{self.last_loss:.4f}",
                                     primitives=len(self.model))
         self.write_outputs()
