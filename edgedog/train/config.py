@@ -467,7 +467,8 @@ def from_dict(values: Any) -> TrainConfig:
     value; one in `RETIRED` is dropped; an unknown or bad one raises ConfigError naming it."""
     if not is_flat(values):
         return settings_from_dict(TrainConfig, _without_retired(values), ABSENT_MEANS)
-    flat = {name: value for name, value in values.items() if f"run.{name}" not in RETIRED}
+    retired_names = {path.rsplit(".", 1)[1] for path in RETIRED}
+    flat = {name: value for name, value in values.items() if name not in retired_names}
     return with_values(TrainConfig(), {**ABSENT_MEANS, **{setting_name(str(key)): value
                                                           for key, value in flat.items()}})
 

@@ -392,10 +392,9 @@ class Trainer:
         if epoch >= c.ratio_from_epoch:
             terms.append((c.ratio_factor, lambda: losses.ratio_loss(self.model)))
         if epoch >= c.direction_from_epoch and len(self.model) > c.direction_neighbours:
-            if (self._neighbours is None or self._neighbours_used >= c.neighbours_every
-                    or len(self._neighbours) != len(self.model)):
-                self._neighbours, self._neighbours_used = losses.nearest_neighbours(self.model,
-                                                                                    c.direction_neighbours), 0
+            if self._neighbours is None or self._neighbours_used >= c.neighbours_every:
+                self._neighbours = losses.nearest_neighbours(self.model, c.direction_neighbours)
+                self._neighbours_used = 0
             self._neighbours_used += 1
             neighbours = self._neighbours
             terms.append((c.direction_factor, lambda: losses.direction_loss(self.model, neighbours)))
