@@ -10,7 +10,7 @@ from pathlib import Path
 from edgedog.bench.ablation import TABLES, select_rows
 from edgedog.commands.arguments import MAX_SIZE, bounded_integer
 from edgedog.edges.registry import WEIGHTS_HELP
-from edgedog.errors import ConfigError
+from edgedog.errors import ConfigError, OutputError
 from edgedog.files import atomic_write_json
 from edgedog.outputs import check_new_file, check_output_folder, output_file
 from edgedog.train.config import DEFAULT_PRESET, MAX_SEED, PRESETS, Kernel
@@ -126,6 +126,7 @@ def add_parser(subparsers) -> None:
     _add_sfm_vs_cameras(kinds)
     _add_distorted_copy(kinds)
     _add_edge_length(kinds)
+    _add_extraction(kinds)
 
 
 def _add_steps(kinds) -> None:
@@ -234,6 +235,26 @@ def _add_edge_length(kinds) -> None:
                         help="also write the figure (PNG) here, e.g. under docs/")
     length.add_argument("--force", action="store_true", help="replace the --figure file if it exists")
     length.set_defaults(run=run_edge_length)
+
+
+def _add_extraction(kinds) -> None:
+    extraction = kinds.add_parser(
+        "extraction", help="curve extraction settings against each other on finished runs",
+        description="Extract every finished run of the folders given (run folders, or a batch's --out) "
+                    "twice with today's code, with the base settings and with the variant's, into "
+                    "OUT/runs/NNN-NAME/base and .../variant (the runs are only read), score both "
+                    "extractions' curves against the scene's ground truth, and write "
+                    "OUT/extraction.json and .md: per run each score, base -> variant, and per score "
+                    "both sides' mean and standard deviation, the paired difference (mean and "
+                    "standard error), the runs made better and worse and the worst run. Trains nothing.")
+    extraction.add_argument("--runs", action="append", required=True, type=Path, metavar="FOLDER",
+                            help="a run folder or a folder of runs (repeatable)")
+    extraction.add_argument("--set", dest="variant_set", action="append", default=[], metavar="KEY=VALUE",
+                            help="a setting of the variant (as for edgedog extract --set; repeatable)")
+    extraction.add_argument("--base-set", action="append", default=[], metavar="KEY=VALUE",
+                            help="a setting of the base (default: the defaults; repeatable)")
+    extraction.add_argument("--out", type=Path, required=True, help="a new or empty folder")
+    extraction.set_defaults(run=run_extraction)
 
 
 def _add_json_arguments(parser: argparse.ArgumentParser) -> None:
@@ -407,6 +428,25 @@ def run_edge_length(args: argparse.Namespace) -> None:
         written.append(args.figure)
     print(markdown(result))
     print("wrote " + ", ".join(str(path) for path in written))
+
+
+def run_extraction(args: argparse.Namespace) -> None:
+    from edgedog.bench.extraction import EXTRACTION_FILES, compare, markdown, record
+    from edgedog.curves.config import ExtractConfig, with_overrides
+    from edgedog.files import atomic_write_bytes
+
+    base, variant = (with_overrides(ExtractConfig(), sets) for sets in (args.base_set, args.variant_set))
+    check_output_folder(args.out, EXTRACTION_FILES)
+    if args.out.exists() and any(args.out.iterdir()):
+        raise OutputError(args.out, "must be a new or empty folder: this bench writes its extractions there")
+    pairs, notes = compare(args.runs, base, variant, args.out)
+    if not pairs:
+        raise ConfigError("no finished run in the folders given" + "".join(f"; {note}" for note in notes))
+    result = record(pairs, notes, args.base_set, args.variant_set)
+    atomic_write_json(args.out / EXTRACTION_FILES[0], result)
+    atomic_write_bytes(args.out / EXTRACTION_FILES[1], markdown(result).encode("utf-8"))
+    print(markdown(result))
+    print("wrote " + ", ".join(str(args.out / name) for name in EXTRACTION_FILES))
 
 
 def run_edges(args: argparse.Namespace) -> None:
