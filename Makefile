@@ -5,9 +5,9 @@ PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
 SUDO   := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
-# Debian packages the test suite needs: a virtual X server for the windowed GUI tests, and
-# Mesa's EGL/GL for offscreen rendering.
-DEB_PACKAGES := xvfb libegl1 libgl1-mesa-dri
+# Debian packages the test suite needs: a virtual X server, a window manager and xdotool for the
+# windowed GUI tests (real keys and clicks), and Mesa's EGL/GL for offscreen rendering.
+DEB_PACKAGES := xvfb xdotool openbox libegl1 libgl1-mesa-dri
 EXT_SOURCES  := $(wildcard csrc/*.cpp csrc/*.h csrc/*.cu) setup.py
 
 .PHONY: all setup system-deps build demo test test-fast lint docs screenshots cad-scenes clean
