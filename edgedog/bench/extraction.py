@@ -14,10 +14,11 @@ import math
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
+from edgedog.batch.table import mean_and_spread
 from edgedog.bench.edge_length import run_folders
 from edgedog.curves.config import ExtractConfig
 from edgedog.errors import InputError
-from edgedog.files import read_json
+from edgedog.scenes.scene import Scene
 
 SCORES = ("fscore_5mm", "fscore_10mm", "fscore_20mm", "acc_mm", "comp_mm")
 """The curves' scores compared (`edgedog.metrics.EdgeMetrics.to_dict` keys)."""
@@ -47,14 +48,13 @@ class Pair:
     curves: tuple[int, int]
 
 
-def extract_scored(run: Path, config: ExtractConfig, out: Path) -> tuple[dict[str, float], int]:
-    """Extract the finished `run` with `config` into the folder `out` (created) and score its
-    curves: (`SCORES`, curves fitted). InputError naming the run when its scene has no ground
-    truth or no curve came out to score."""
-    from edgedog.curves.extract import run_scene
+def extract_scored(run: Path, scene: Scene, detector: str, config: ExtractConfig,
+                   out: Path) -> tuple[dict[str, float], int]:
+    """Extract the finished `run` of `scene` (its maps `detector`, as `run_scene` gives them) with
+    `config` into the folder `out` (created) and score its curves: (`SCORES`, curves fitted).
+    InputError naming the run when its scene has no ground truth or no curve came out to score."""
     from edgedog.curves.report import extract_with_report
 
-    scene, detector = run_scene(run, maps=True)
     out.mkdir(parents=True)
     result, report = extract_with_report(run, scene, detector, config, out_dir=out)
     if "ground_truth" not in report:
@@ -71,6 +71,8 @@ def compare(folders: list[Path], base: ExtractConfig, variant: ExtractConfig, ou
     extracted with `base` and with `variant` into out/runs/NNN-NAME/{base,variant}; the pairs
     and notes on the runs left out (not finished). `finished(path) -> bool` decides (default
     `edgedog.train.lifecycle.is_finished`); `progress(line)` hears of each run."""
+    from edgedog.curves.extract import run_scene
+
     if finished is None:
         from edgedog.train.lifecycle import is_finished as finished
     pairs, notes = [], []
@@ -80,19 +82,20 @@ def compare(folders: list[Path], base: ExtractConfig, variant: ExtractConfig, ou
             notes.append(f"{run} is not finished; left out")
             continue
         folder = out / "runs" / f"{number:03d}-{run.name}"
-        base_scores, base_curves = extract_scored(run, base, folder / SIDES[0])
-        variant_scores, variant_curves = extract_scored(run, variant, folder / SIDES[1])
-        scene = Path(read_json(run / "log.json")["scene"]).name
-        pairs.append(Pair(str(run), scene, base_scores, variant_scores, (base_curves, variant_curves)))
+        scene, detector = run_scene(run, maps=True)  # read once, for both extractions
+        base_scores, base_curves = extract_scored(run, scene, detector, base, folder / SIDES[0])
+        variant_scores, variant_curves = extract_scored(run, scene, detector, variant, folder / SIDES[1])
+        pairs.append(Pair(str(run), scene.root.name, base_scores, variant_scores,
+                          (base_curves, variant_curves)))
         progress(f"{len(pairs)}/{len(runs)} {run.name}: F10 {base_scores['fscore_10mm']:.1f} -> "
                  f"{variant_scores['fscore_10mm']:.1f}")
     return pairs, notes
 
 
 def _mean_std(values: list[float]) -> tuple[float, float]:
-    mean = sum(values) / len(values)
-    std = math.sqrt(sum((v - mean) ** 2 for v in values) / (len(values) - 1)) if len(values) > 1 else 0.0
-    return mean, std
+    """`mean_and_spread` of `values` (not empty), the spread of a single value taken as 0."""
+    mean, spread = mean_and_spread(values)
+    return mean, 0.0 if spread is None else spread
 
 
 def summary(pairs: list[Pair]) -> dict:
