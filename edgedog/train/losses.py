@@ -3,11 +3,10 @@ pixel-level uncertainty from the rendered depth."""
 
 from __future__ import annotations
 
-import numpy as np
 import torch
 import torch.nn.functional as F
-from scipy.spatial import cKDTree
 
+from edgedog.train import neighbours
 from edgedog.train.model import EdgeModel
 
 
@@ -83,12 +82,8 @@ def edge_and_background_sample(edges: torch.Tensor, pixels: int, generator: torc
 
 def nearest_neighbours(model: EdgeModel, k: int) -> torch.Tensor:
     """(N, k) indices of each primitive's k nearest other primitives (by centre), on the model's
-    device (the k-d tree is built on the host)."""
-    points = model.means.detach().cpu().numpy()
-    k = min(k, len(points) - 1)
-    # The query's threads are torch's: a run given one core (a batch) keeps to one.
-    _, index = cKDTree(points).query(points, k=k + 1, workers=torch.get_num_threads())
-    return torch.from_numpy(np.asarray(index)[:, 1:].astype(np.int64)).to(model.device)
+    device (`edgedog.train.neighbours`: a k-d tree on the host, blocked distances on a GPU)."""
+    return neighbours.nearest_neighbours(model.means.detach(), k).to(model.device)
 
 
 def direction_loss(model: EdgeModel, neighbours: torch.Tensor) -> torch.Tensor:
