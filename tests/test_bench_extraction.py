@@ -16,6 +16,7 @@ from edgedog.curves.config import ExtractConfig
 from edgedog.primitives import PrimitiveArrays, write_ply
 from edgedog.synthetic.features import sample_curve
 from edgedog.synthetic.shapes import make_part
+from edgedog.train.lifecycle import lock_folder
 
 FLOATERS = 40
 """Primitives the synthetic run holds off the part, beside the sampled edges: what the silhouette
@@ -124,3 +125,8 @@ def test_the_command_refuses_a_folder_that_is_not_empty_and_folders_without_fini
     assert main(["bench", "extraction", "--runs", str(tmp_path / "runs"), "--out", str(new)]) != 0
     error = capsys.readouterr().err.strip()
     assert "no finished run" in error and len(error.splitlines()) == 1
+    held = tmp_path / "held"
+    with lock_folder(held):  # another bench is writing there
+        assert main(["bench", "extraction", "--runs", str(tmp_path / "runs"), "--out", str(held)]) != 0
+    error = capsys.readouterr().err.strip()
+    assert "in use by another edgedog process" in error and len(error.splitlines()) == 1

@@ -434,17 +434,26 @@ def run_extraction(args: argparse.Namespace) -> None:
     from edgedog.bench.extraction import EXTRACTION_FILES, compare, markdown, record
     from edgedog.curves.config import ExtractConfig, with_overrides
     from edgedog.files import atomic_write_bytes
+    from edgedog.train.lifecycle import lock_folder
+    from edgedog.train.run_folder import LOCK_FILE
 
     base, variant = (with_overrides(ExtractConfig(), sets) for sets in (args.base_set, args.variant_set))
     check_output_folder(args.out, EXTRACTION_FILES)
-    if args.out.exists() and any(args.out.iterdir()):
-        raise OutputError(args.out, "must be a new or empty folder: this bench writes its extractions there")
-    pairs, notes = compare(args.runs, base, variant, args.out)
-    if not pairs:
-        raise ConfigError("no finished run in the folders given" + "".join(f"; {note}" for note in notes))
-    result = record(pairs, notes, args.base_set, args.variant_set)
-    atomic_write_json(args.out / EXTRACTION_FILES[0], result)
-    atomic_write_bytes(args.out / EXTRACTION_FILES[1], markdown(result).encode("utf-8"))
+
+    def refuse_unless_empty():
+        if args.out.exists() and any(entry.name != LOCK_FILE for entry in args.out.iterdir()):
+            raise OutputError(args.out, "must be a new or empty folder: this bench writes its extractions "
+                                        "there")
+
+    refuse_unless_empty()  # before the lock, which would write into a folder that is not ours
+    with lock_folder(args.out):  # one bench at a time: another may have filled it meanwhile
+        refuse_unless_empty()
+        pairs, notes = compare(args.runs, base, variant, args.out)
+        if not pairs:
+            raise ConfigError("no finished run in the folders given" + "".join(f"; {note}" for note in notes))
+        result = record(pairs, notes, args.base_set, args.variant_set)
+        atomic_write_json(args.out / EXTRACTION_FILES[0], result)
+        atomic_write_bytes(args.out / EXTRACTION_FILES[1], markdown(result).encode("utf-8"))
     print(markdown(result))
     print("wrote " + ", ".join(str(args.out / name) for name in EXTRACTION_FILES))
 
