@@ -6,7 +6,7 @@ from __future__ import annotations
 import torch
 import torch.nn.functional as F
 
-from edgedog.train import neighbours
+from edgedog.train import neighbours as neighbour_search
 from edgedog.train.model import EdgeModel
 
 
@@ -82,8 +82,9 @@ def edge_and_background_sample(edges: torch.Tensor, pixels: int, generator: torc
 
 def nearest_neighbours(model: EdgeModel, k: int) -> torch.Tensor:
     """(N, k) indices of each primitive's k nearest other primitives (by centre), on the model's
-    device (`edgedog.train.neighbours`: a k-d tree on the host, blocked distances on a GPU)."""
-    return neighbours.nearest_neighbours(model.means.detach(), k).to(model.device)
+    device (`edgedog.train.neighbours`: a k-d tree on the host, blocked distances on a GPU up to
+    its `DEVICE_SEARCH_LIMIT` primitives)."""
+    return neighbour_search.nearest_neighbours(model.means.detach(), k).to(model.device)
 
 
 def direction_loss(model: EdgeModel, neighbours: torch.Tensor) -> torch.Tensor:
