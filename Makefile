@@ -43,12 +43,14 @@ build: $(VENV)/.ext-built
 demo: setup
 	@if [ -n "$$DISPLAY" ] || [ -n "$$WAYLAND_DISPLAY" ]; then $(BIN)/edgedog studio; else $(BIN)/edgedog demo; fi
 
+# One pytest worker per core (pytest-xdist), a test file per worker at a time so that a file's
+# module fixtures are built once; each worker's torch runs one thread (tests/conftest.py).
 test: setup
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n auto --dist loadfile
 
 # The quick tier: no slow test, no OpenGL, no window (markers declared in pyproject.toml).
 test-fast: setup
-	$(BIN)/python -m pytest -q -m "not slow and not gl and not xvfb"
+	$(BIN)/python -m pytest -q -n auto --dist loadfile -m "not slow and not gl and not xvfb"
 
 # ruff over the Python, clang-format (style in .clang-format) over the C++; all pinned in requirements.txt.
 # Then import-linter over the packages as installed: edgedog/ with renderer/ and app/ linked in

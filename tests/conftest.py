@@ -12,6 +12,12 @@ import pytest
 
 from tests.helpers.paths import shared_path
 
+if "PYTEST_XDIST_WORKER" in os.environ:
+    # Under pytest-xdist (`make test`: a worker per core) each worker's torch, and the commands it
+    # runs as subprocesses, take one thread: torch's default of one per core would put two workers'
+    # threads on each core. Set before any test module imports torch.
+    os.environ.setdefault("OMP_NUM_THREADS", "1")
+
 
 @pytest.fixture(scope="session", autouse=True)
 def user_cache(tmp_path_factory) -> Path:
