@@ -9,7 +9,14 @@ import pytest
 
 from edgedog.errors import InputError
 from edgedog.init import InitSettings, initialize
-from edgedog.init.edge_vote import VoteSettings, edge_vote_points, on_crest, surprise, view_cones
+from edgedog.init.edge_vote import (
+    VoteSettings,
+    edge_vote_points,
+    on_crest,
+    surprise,
+    thin_to_spacing,
+    view_cones,
+)
 from edgedog.synthetic.cameras import TARGET, orbit_cameras
 
 SIZE = 800
@@ -92,6 +99,38 @@ def test_the_count_is_a_ceiling(hidden_maps):
     result = vote(hidden_maps, VoteSettings(finest=128), count=300)
     assert len(result) == 300
     assert result.report["cells_agreeing"] > 300
+
+
+def test_thinning_keeps_a_count_that_follows_the_edge_length():
+    rng = np.random.default_rng(0)
+
+    def tube(start, end, count):  # points of a crest 4 mm thick around a segment
+        return np.linspace(start, end, count) + rng.normal(0.0, 0.002, (count, 3))
+
+    short = tube([0.0, 0.0, 0.0], [0.3, 0.0, 0.0], 600)
+    long = tube([0.0, 0.5, 0.0], [0.4, 0.5, 0.6], 1000)  # 0.72 long, along no axis
+    spacing = 0.01
+    kept_short, kept_long = (len(thin_to_spacing(points, spacing)) for points in (short, long))
+    assert 0.3 / (2 * spacing) <= kept_short <= 0.3 / spacing + 1
+    assert abs(kept_long / kept_short - 0.72 / 0.3) < 0.1 * 0.72 / 0.3
+    both = np.concatenate([short, long])
+    chosen = thin_to_spacing(both, spacing)
+    kept = both[chosen]
+    assert covered(kept, ([0.0, 0.0, 0.0], [0.3, 0.0, 0.0]), spacing) == 1.0  # no gaps
+    gaps = np.linalg.norm(kept[:, None] - kept[None], axis=2) + np.eye(len(kept))
+    assert gaps.min() >= spacing
+    assert np.all(np.linalg.norm(kept[chosen < len(short), 1:], axis=1) < 0.006)  # off no rim
+    assert np.array_equal(thin_to_spacing(both, 0.0), np.arange(len(both)))
+
+
+def test_a_thinned_vote_still_covers_every_edge(hidden_maps):
+    settings = VoteSettings()
+    every = vote(hidden_maps, settings)
+    spacing = 4 * PIXEL
+    thinned = edge_vote_points(CAMERAS, hidden_maps, MASKS, TARGET, 1.1, 100_000, (0.001, 0.01), settings,
+                               spacing=spacing)
+    assert len(thinned) < len(every) / 2 and thinned.report["spacing"] == spacing
+    assert min(covered(thinned.positions, s, spacing) for s in BOX + [HIDDEN]) >= 0.9
 
 
 def test_empty_and_broken_maps_give_no_points():

@@ -59,7 +59,8 @@ def edge_vote_for_scene(scene: Scene, settings: InitSettings, detector: str | No
                         edge_threshold=settings.edge_threshold)
     # Scales as the uniform cube's at its densest, down to a tenth of that for close neighbours.
     scale_range = (0.0004 * side / 1.1, 0.005 * side / 1.1)
-    return edge_vote_points(scene.cameras, maps, masks, center, side, settings.count, scale_range, vote, seed)
+    return edge_vote_points(scene.cameras, maps, masks, center, side, settings.count, scale_range, vote, seed,
+                            spacing=settings.vote_spacing * side)
 
 
 def sfm_points_on_edges(scene: Scene, detector: str | None = None, min_edge_views: int = 2,

@@ -27,6 +27,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 from scipy.ndimage import maximum_filter
+from scipy.spatial import cKDTree
 from scipy.stats import binom
 
 from edgedog.edges.thin import ridge_mask
@@ -289,25 +290,51 @@ def vote_cells(cameras: list[Camera], edge_maps: list[np.ndarray], masks: list[n
     return Vote(points, views, report)
 
 
+def thin_to_spacing(points: np.ndarray, spacing: float) -> np.ndarray:
+    """(M,) sorted indices into `points` (N, 3) no two of which lie within `spacing` of each other,
+    every other point within `spacing` of one of them: a greedy suppression that keeps first the
+    points with the most neighbours within `spacing` (the middle of the vote's crest, not its rim).
+
+    Along a thin tube of points (the crest around an edge) the kept ones lie one to two spacings
+    apart whatever the edge's direction: the count follows the length of edge, not the tube's
+    thickness.
+    """
+    if spacing <= 0 or len(points) < 2:
+        return np.arange(len(points))
+    near = cKDTree(points).query_ball_point(points, spacing)
+    crowd = np.array([len(found) for found in near])
+    removed = np.zeros(len(points), dtype=bool)
+    kept = []
+    for i in np.lexsort((np.arange(len(points)), -crowd)).tolist():
+        if not removed[i]:
+            kept.append(i)
+            removed[near[i]] = True
+    return np.sort(np.array(kept, dtype=np.int64))
+
+
 def edge_vote_points(cameras: list[Camera], edge_maps: list[np.ndarray], masks: list[np.ndarray | None],
                      center: np.ndarray, side: float, count: int, scale_range: tuple[float, float],
-                     settings: VoteSettings = VoteSettings(), seed: int = 0) -> InitialPoints:
+                     settings: VoteSettings = VoteSettings(), seed: int = 0,
+                     spacing: float = 0.0) -> InitialPoints:
     """At most `count` initial points on the cells the views' edges agree on, one per cell,
     jittered within it, with nearest-neighbour scales clipped to `scale_range` and the cells'
     `sight`.
 
-    Where more cells agree than `count`, a random `count` of them are kept (uniformly along the
-    edges: the most surprising would favour the edges that many views see over concave ones).
+    With `spacing` > 0 the agreeing cells are first thinned to about one per `spacing` of edge
+    (`thin_to_spacing`), so that the count follows the length of edge the maps draw. Where more
+    cells are left than `count`, a random `count` of them are kept (uniformly along the edges:
+    the most surprising would favour the edges that many views see over concave ones).
     """
     vote = vote_cells(cameras, edge_maps, masks, center, side, settings)
     rng = np.random.default_rng(seed)
-    chosen = np.arange(len(vote.centres))
+    chosen = thin_to_spacing(vote.centres, spacing)
     if len(chosen) > count:
         chosen = np.sort(rng.choice(len(chosen), size=count, replace=False))
     cell = vote.report["cell"]
     positions = vote.centres[chosen] + (rng.random((len(chosen), 3)) - 0.5) * cell
     scales = nearest_neighbour_scales(positions, lo=scale_range[0], hi=scale_range[1])
     report = {**vote.report, "points": int(len(positions)), "cells_agreeing": int(len(vote.centres)),
+              "spacing": float(spacing),
               "center": [float(c) for c in center], "side": float(side), "seed": int(seed)}
     directions = sight(vote.centres[chosen], vote.views)
     return InitialPoints(positions, scales, "edge-vote", report, sight=directions)

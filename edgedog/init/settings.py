@@ -66,6 +66,10 @@ class InitSettings(Settings):
     this times the mean direction toward the views that voted for it, so that an edge hidden
     from most views starts drawn only toward those that see it (held until b trains, from
     `schedule.view_opacity_from_epoch`; capped at `model.view_opacity_cap`). 0: b starts at 0."""
+    vote_spacing: Annotated[float, Range(0, 0.1)] = 0.0
+    """'edge-vote' thins the agreeing cells to about one per this share of the cube's side of edge
+    (0.009: 10 mm on ABC's 1.1 cube), so that the count follows the length of edge the maps draw
+    (`count` stays the ceiling). 0: every agreeing cell, a random `count` of them when more."""
     opacity: Annotated[float, Range(0, 1, open_low=True, open_high=True)] = 0.08
     """Initial opacity of every primitive."""
     k: tuple[Logit, Logit] = (0.0, 0.0)
