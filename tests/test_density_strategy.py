@@ -9,10 +9,10 @@ import pytest
 import torch
 from edgedog.renderer.config import RasterConfig
 
+from edgedog.spacing import edge_directions, redundant
 from edgedog.train.config import TrainConfig, with_settings
 from edgedog.train.model import EdgeModel
 from edgedog.train.optim import Optimizers
-from edgedog.train.spacing import edge_directions, redundant
 from edgedog.train.strategy import DensityStrategy
 from edgedog.train.trainer import Trainer
 from tests.helpers.tiny_runs import every_fifth_view, tiny_config
@@ -71,7 +71,7 @@ def test_duplication_stays_within_the_budget(max_primitives, copied):
     assert torch.equal(model.k_raw.detach()[N:], before.k_raw[sources])
 
 
-# --- spacing control (edgedog.train.spacing): a budget per length of edge
+# --- spacing control (edgedog.spacing): a budget per length of edge
 
 def along_edges(corners: list[tuple[tuple[float, float, float], tuple[float, float, float]]], count: int,
                 seed: int) -> EdgeModel:

@@ -33,6 +33,7 @@ from scipy.stats import binom
 from edgedog.edges.thin import ridge_mask
 from edgedog.init.points import InitialPoints, nearest_neighbour_scales
 from edgedog.scenes.camera import Camera
+from edgedog.spacing import redundant
 
 OFFSETS = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=np.float64)
 """(8, 3) directions from a cell's centre to its eight children's, in quarter cells."""
@@ -292,24 +293,19 @@ def vote_cells(cameras: list[Camera], edge_maps: list[np.ndarray], masks: list[n
 
 def thin_to_spacing(points: np.ndarray, spacing: float) -> np.ndarray:
     """(M,) sorted indices into `points` (N, 3) no two of which lie within `spacing` of each other,
-    every other point within `spacing` of one of them: a greedy suppression that keeps first the
-    points with the most neighbours within `spacing` (the middle of the vote's crest, not its rim).
+    every other point within `spacing` of one of them: the spacing control's greedy suppression
+    (`edgedog.spacing.redundant`) on distance alone, keeping first the points with the most
+    neighbours within `spacing` (the middle of the vote's crest, not its rim).
 
     Along a thin tube of points (the crest around an edge) the kept ones lie one to two spacings
     apart whatever the edge's direction: the count follows the length of edge, not the tube's
     thickness.
     """
-    if spacing <= 0 or len(points) < 2:
+    if spacing <= 0:
         return np.arange(len(points))
-    near = cKDTree(points).query_ball_point(points, spacing)
-    crowd = np.array([len(found) for found in near])
-    removed = np.zeros(len(points), dtype=bool)
-    kept = []
-    for i in np.lexsort((np.arange(len(points)), -crowd)).tolist():
-        if not removed[i]:
-            kept.append(i)
-            removed[near[i]] = True
-    return np.sort(np.array(kept, dtype=np.int64))
+    crowd = cKDTree(points).query_ball_point(points, spacing, return_length=True)
+    one_direction = np.tile(np.array([1.0, 0.0, 0.0]), (len(points), 1))  # every close pair conflicts
+    return np.flatnonzero(~redundant(points, one_direction, crowd, spacing, max_angle=90.0))
 
 
 def edge_vote_points(cameras: list[Camera], edge_maps: list[np.ndarray], masks: list[np.ndarray | None],

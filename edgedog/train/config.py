@@ -329,7 +329,7 @@ class StrategySettings(Settings):
     """Duplication never grows the model beyond this."""
     spacing_epochs: tuple[Epoch, ...] = ()
     """Epochs after which the primitives are held at `spacing` along the edges
-    (edgedog.train.spacing): of primitives closer than `spacing` where the edge runs in similar
+    (edgedog.spacing): of primitives closer than `spacing` where the edge runs in similar
     directions (the principal axes of their neighbours' centres) the one ranked higher by
     `spacing_keep` stays and the others are removed, and an elongated primitive whose largest
     scale exceeds `spacing` is split along its major axis (`spacing_split`). Empty: no spacing

@@ -1,6 +1,6 @@
 """Density control with explicit state (gsplat's Strategy pattern): EdgeGaussians' duplication
 and culling, EdgeDoG's primitive-level (Fisher) pruning, and the spacing control that holds
-the primitives at a target spacing along the edges (edgedog.train.spacing)."""
+the primitives at a target spacing along the edges (edgedog.spacing)."""
 
 from __future__ import annotations
 
@@ -12,12 +12,12 @@ import torch
 from edgedog.renderer.config import RasterConfig
 from edgedog.renderer.rasterize import RenderOutput, fisher_information
 from edgedog.scenes.camera import Camera
+from edgedog.spacing import edge_directions, redundant, spacing_length, split_offsets, split_pieces
 from edgedog.train.config import MAX_COPIES, TrainConfig
 from edgedog.train.model import EdgeModel
 from edgedog.train.occlusion import Occlusion, drawn_in_view
 from edgedog.train.optim import Optimizers
 from edgedog.train.resolution import ViewSet
-from edgedog.train.spacing import edge_directions, redundant, spacing_length, split_offsets, split_pieces
 from edgedog.train.view_opacity import camera_centres, largest_logits, relative_opacity, seen_from
 
 MIN_DRAWN = 1e-6
@@ -186,7 +186,7 @@ class DensityStrategy:
                               self._drawn(model, views, self._hidden(model)))
 
     def _space(self, model: EdgeModel, optimizers: Optimizers, state: StrategyState, views: ViewSet) -> dict:
-        """Hold the primitives at the target spacing along the edges (edgedog.train.spacing): remove
+        """Hold the primitives at the target spacing along the edges (edgedog.spacing): remove
         the redundant ones, then split the long ones into new primitives (zero Adam moments)."""
         c, before = self.settings, len(model)
         means = model.means.detach().double().cpu().numpy()

@@ -15,7 +15,8 @@ The edge's direction at a primitive is the principal axis of its nearest neighbo
 (`edge_directions`), not the primitive's own major axis: trained primitives are nearly round
 (their largest scale 1.1-1.3 times the second, measured on `quick` runs), and a round one's
 major axis points anywhere. Along an edge of length L covered densely, L / (1 to 2 spacings)
-primitives stay.
+primitives stay. The edge vote's start is thinned by the same suppression, on distance alone
+(`edgedog.init.edge_vote.thin_to_spacing`).
 """
 
 from __future__ import annotations
