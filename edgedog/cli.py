@@ -7,6 +7,7 @@ import sys
 import traceback
 
 from edgedog import __version__
+from edgedog.allocator import keep_freed_memory
 from edgedog.commands import (
     batch,
     bench,
@@ -62,6 +63,7 @@ def main(argv: list[str] | None = None) -> int:
     asking to report it, exit 1.
     """
     args = build_parser().parse_args(argv)
+    keep_freed_memory()
     try:
         return args.run(args) or 0
     except EdgeDogError as exc:
