@@ -65,11 +65,13 @@ class ExtractConfig(Settings):
     'all' stays the default: on today's runs primitives seldom form on such edges and the CAD
     benchmark does not move (F10 90.37 -> 90.38; docs/notes/2026-11-27-few-view-probes.md)."""
     filter_silhouette: bool = True
-    max_outside_pixels: Annotated[float, Range(0)] = 4.0
+    max_outside_pixels: Annotated[float, Range(0)] = 3.0
     """Keep points that land at most this many pixels (of the run's views) outside the object's
     mask in every view; skipped on scenes without masks. Edge maps also draw the occluding
     contours of curved surfaces, which move with the view and are not edges of the object;
-    training places primitives for them around the object, outside it in some views."""
+    training places primitives for them around the object, outside it in some views. 3 (was 4):
+    it also drops the corners where a fillet's silhouette rays meet outside the part (the 42 CAD
+    designs: docs/RESULTS.md, "The silhouette filter's limit")."""
     filter_outliers: OutlierFilter = "on"
     """Statistical outliers: drop points whose mean distance to their `outlier_neighbours` nearest
     points exceeds the mean of that value over all points by `outlier_std` standard deviations.
