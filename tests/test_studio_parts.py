@@ -225,6 +225,7 @@ def test_each_region_clips_imguis_own_draw_commands_from_their_clip_rects_as_bui
     context = imgui.create_context()
     try:
         io = imgui.get_io()
+        io.set_ini_filename(None)  # as the studio: no imgui.ini left in the working folder
         io.display_size = imgui.ImVec2(800, 600)
         io.backend_flags |= imgui.BackendFlags_.renderer_has_textures  # no font atlas to upload
         for _ in range(2):  # a new window shows from its second frame
