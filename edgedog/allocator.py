@@ -20,15 +20,20 @@ M_TRIM_THRESHOLD, M_MMAP_THRESHOLD = -1, -3
 """glibc's `mallopt` parameters (malloc.h)."""
 
 
+def on_glibc() -> bool:
+    """Whether this process runs on Linux's glibc, whose `mallopt` `keep_freed_memory` calls."""
+    return platform.system() == "Linux" and platform.libc_ver()[0] == "glibc"
+
+
 def keep_freed_memory() -> bool:
     """Raise glibc's mmap and trim thresholds to `KEPT_BLOCK_BYTES` for this process; returns
     whether both took effect (False off Linux's glibc, where nothing changes). Call once, at a
     command's start."""
-    if platform.system() != "Linux" or platform.libc_ver()[0] != "glibc":
+    if not on_glibc():
         return False
     libc = ctypes.CDLL(None)  # the process's own C library
     return bool(libc.mallopt(M_MMAP_THRESHOLD, KEPT_BLOCK_BYTES)) and bool(
         libc.mallopt(M_TRIM_THRESHOLD, KEPT_BLOCK_BYTES))
 
 
-__all__ = ["KEPT_BLOCK_BYTES", "keep_freed_memory"]
+__all__ = ["KEPT_BLOCK_BYTES", "keep_freed_memory", "on_glibc"]

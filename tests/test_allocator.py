@@ -1,14 +1,14 @@
 """The CLI keeps large freed blocks for reuse (edgedog.allocator): PiDiNet's second image does not
 fault its tensors' pages in again."""
 
-import platform
 import subprocess
 import sys
 
 import pytest
 
-pytestmark = pytest.mark.skipif(platform.system() != "Linux" or platform.libc_ver()[0] != "glibc",
-                                reason="the setting is glibc's")
+from edgedog.allocator import on_glibc
+
+pytestmark = pytest.mark.skipif(not on_glibc(), reason="the setting is glibc's")
 
 SECOND_IMAGE_FAULTS = """
 import resource, sys
