@@ -330,8 +330,8 @@ def view_evidence(curves: list[GroundTruthCurve], mesh, scene, detector: str | N
     try:
         for i in views:
             camera = scene.camera(int(i))
-            render = _render(renderers, mesh, gt_to_world, camera) if mesh is not None else None
-            seen = _visible(points, camera, render)
+            render = render_mesh(renderers, mesh, gt_to_world, camera) if mesh is not None else None
+            seen = visible_points(points, camera, render)
             edge = window_max(scene.load_edge_map(int(i), detector)) if detector is not None else None
             background = _background(scene, int(i), render)
             pixels, _ = camera.pixels(points)
@@ -376,7 +376,7 @@ def _looks_into_wedge(curves: list[GroundTruthCurve], middles: np.ndarray, tange
     return result
 
 
-def _render(renderers: dict, mesh, gt_to_world: np.ndarray, camera):
+def render_mesh(renderers: dict, mesh, gt_to_world: np.ndarray, camera):
     """The mesh (ground-truth frame) rendered by `camera`, one renderer per image size."""
     from edgedog.synthetic.mesh import Mesh
     from edgedog.synthetic.render import Renderer
@@ -391,7 +391,7 @@ def _render(renderers: dict, mesh, gt_to_world: np.ndarray, camera):
     return renderers[size].render(camera)
 
 
-def _visible(points: np.ndarray, camera, render) -> np.ndarray:
+def visible_points(points: np.ndarray, camera, render) -> np.ndarray:
     """(N,) whether `camera` sees each point: on the rendered mesh, or in the image without one."""
     if render is None:
         return camera.pixels(points)[1]

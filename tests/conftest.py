@@ -37,6 +37,17 @@ def small_box_scene(tmp_path_factory) -> Path:
     return make_small_scene(tmp_path_factory.mktemp("small") / "box")
 
 
+@pytest.fixture(scope="module")
+def bracket_scene(tmp_path_factory) -> Path:
+    """The L-bracket (seed 0) as a scene: 12 views at 160 px with exact edge maps (the per-curve
+    diagnosis' tests)."""
+    from edgedog.builtin.writer import write_scene
+    from edgedog.synthetic.shapes import make_part
+
+    return write_scene(tmp_path_factory.mktemp("per-curve") / "bracket", make_part("l-bracket"), views=12,
+                       size=160, detector="exact")
+
+
 @pytest.fixture(scope="session")
 def abc_nef_scene_dir() -> Path:
     return shared_path("abc_nef/00000006")

@@ -24,15 +24,6 @@ REMOVED = 3
 """The ground-truth curve the prediction leaves out (a convex edge of the L-bracket)."""
 
 
-@pytest.fixture(scope="module")
-def bracket_scene(tmp_path_factory) -> Path:
-    """The L-bracket (seed 0) as a scene: 12 views at 160 px with exact edge maps."""
-    from edgedog.builtin.writer import write_scene
-
-    return write_scene(tmp_path_factory.mktemp("per-curve") / "bracket", make_part("l-bracket"), views=12,
-                       size=160, detector="exact")
-
-
 def _write_run(folder: Path, scene: Path, drop_primitives: bool) -> Path:
     """A run folder whose curves are the scene's ground-truth curves but REMOVED, with primitives
     every 5 mm along every curve: along REMOVED none (`drop_primitives`), or faint ones (opacity

@@ -45,6 +45,12 @@ def add_parser(subparsers) -> None:
                              "lost (occluded, not drawn in the maps, no primitive, which extraction "
                              "filter, curve fitting), the predicted curves on no edge and why, and recall "
                              "by kind and type; in the --json file under 'per_curve'")
+    parser.add_argument("--figure", type=Path, default=None,
+                        help="with --per-curve: a PNG of the views that show the most missed curves, the "
+                             "ground truth drawn over each by outcome (found, missed and why) with the "
+                             "predicted curves on no edge; never a run's own file nor inside a scene folder")
+    parser.add_argument("--figure-views", type=int, default=2, choices=range(1, 5), metavar="{1..4}",
+                        help="how many views the --figure shows (default 2)")
     parser.set_defaults(run=run)
 
 
@@ -78,12 +84,20 @@ def score_file(pred: Path, gt_points, world_to_gt=None, voxelize: bool = True) -
 def run(args: argparse.Namespace) -> None:
     if args.per_curve and args.scene is None:
         raise InputError(args.gt, "--per-curve needs --scene: the curves, cameras and maps, not only points")
+    if args.figure is not None and not args.per_curve:
+        raise InputError(args.figure, "--figure draws the per-curve diagnosis: add --per-curve")
+    if args.figure is not None and args.figure.suffix.lower() != ".png":
+        raise InputError(args.figure, "--figure writes a PNG: name a .png file")
     default = args.pred.with_name(args.pred.name + ".eval.json")
     out = args.json or default
     if args.json is None and enclosing_scene(default) is not None:  # the user named no output there
         raise OutputError(default, "would lie inside a scene folder, where edgedog never writes: pass "
                                    "--json FILE outside it")
     check_new_file(out, args.force, default)  # before the work, not after it
+    if args.figure is not None:
+        if enclosing_scene(args.figure) is not None:
+            raise OutputError(args.figure, "lies inside a scene folder, where edgedog never writes")
+        check_new_file(args.figure, args.force)
     args.pred, run_folder = prediction_and_run(args.pred)
     if args.scene is not None:
         scene = load_scene(args.scene)
@@ -100,10 +114,12 @@ def run(args: argparse.Namespace) -> None:
     print(metrics.table())
     report = {}
     if args.per_curve:
-        diagnosis = per_curve(args.pred, run_folder, scene, ground_truth, gt_points, world_to_gt,
-                              not args.no_voxel)
+        diagnosis, figure = per_curve(args.pred, run_folder, scene, ground_truth, gt_points, world_to_gt,
+                                      not args.no_voxel, args.figure, args.figure_views, args.force)
         print(diagnosis.table())
         report = {"per_curve": diagnosis.to_dict()}
+        if figure:
+            print(f"figure written to {args.figure} (views {', '.join(map(str, figure))})")
     with output_file(out, args.force, default):
         atomic_write_json(out, {
             "prediction": str(args.pred.resolve()),
@@ -117,19 +133,30 @@ def run(args: argparse.Namespace) -> None:
 
 
 def per_curve(pred: Path, run_folder: Path | None, scene, ground_truth, gt_points: np.ndarray,
-              world_to_gt: np.ndarray | None, voxelize: bool):
-    """The per-curve diagnosis of `pred` against the scene's ground truth: the views are the
-    run's (as it was trained: resolution, damaged views left out, its edge maps) where `pred`
-    belongs to a run, the scene's otherwise."""
+              world_to_gt: np.ndarray | None, voxelize: bool, figure: Path | None = None, views: int = 2,
+              force: bool = False):
+    """The per-curve diagnosis of `pred` against the scene's ground truth, and with `figure` its
+    picture written there (`edgedog.diagnosis_figure`; the views shown are returned, else []).
+    The views are the run's (as it was trained: resolution, damaged views left out, its edge
+    maps) where `pred` belongs to a run, the scene's otherwise."""
     from edgedog.curves.extract import run_scene
     from edgedog.diagnosis import diagnose, ground_truth_curves
 
     source = ground_truth_curves(ground_truth, scene.root)
     if run_folder is not None:
-        views, detector = run_scene(run_folder)
+        scene_views, detector = run_scene(run_folder)
     else:
-        views, detector = scene, next(iter(scene.detectors), None)
+        scene_views, detector = scene, next(iter(scene.detectors), None)
     curves = read_edges(pred)
     if world_to_gt is not None:
         curves = curves.transformed(world_to_gt)
-    return diagnose(curves, gt_points, source, views, detector, run_folder, voxelize)
+    diagnosis = diagnose(curves, gt_points, source, scene_views, detector, run_folder, voxelize)
+    shown: list[int] = []
+    if figure is not None:
+        from edgedog.diagnosis_figure import draw_missed_edges
+
+        with output_file(figure, force):
+            name = pred.parent.name if run_folder is not None else pred.name
+            shown = draw_missed_edges(diagnosis, source, curves, scene_views, figure, views,
+                                      title=f"{scene.root.name}, {name}")
+    return diagnosis, shown

@@ -1,0 +1,160 @@
+"""A picture of the per-curve diagnosis (`edgedog eval --per-curve --figure FILE.png`).
+
+The views that show the most of the missed ground-truth curves and of the predicted curves on
+no edge, each with its image and, drawn over it, every ground-truth curve by outcome (found or
+missed, hidden stretches dotted) and those predicted curves; a missed curve is labelled with its
+id, and the legend names each missed curve's cause. It shows at a glance what a table of causes says.
+"""
+
+from __future__ import annotations
+
+import io
+from pathlib import Path
+
+import numpy as np
+
+from edgedog.curve_files import EdgeCurves, curve_polylines
+from edgedog.diagnosis import CurveSource, Diagnosis, render_mesh, visible_points
+from edgedog.files import atomic_write_bytes
+from edgedog.metrics import SAMPLE_SPACING, sample_polyline
+
+FOUND, MISSED, FALSE = "#2ca02c", "#d62728", "#ff7f0e"
+MAX_LISTED = 14
+"""Missed curves named in a panel's legend; more are counted."""
+PANEL_INCHES = 5.0
+
+
+def choose_views(seen: np.ndarray, count: int) -> list[int]:
+    """Up to `count` views, greedily: each the row of `seen` (V, N) bool that sees the most points
+    not seen by the views already chosen; view 0 when none sees any."""
+    chosen: list[int] = []
+    covered = np.zeros(seen.shape[1], bool)
+    for _ in range(min(count, len(seen))):
+        gain = (seen & ~covered).sum(axis=1)
+        gain[chosen] = -1
+        best = int(np.argmax(gain))
+        if gain[best] <= 0:
+            break
+        chosen.append(best)
+        covered |= seen[best]
+    return chosen or [0]
+
+
+def _cause(text: str) -> str:
+    """A cause's first clause: 'no primitive formed (within ...)' -> 'no primitive formed'."""
+    return text.split(" (")[0].split(":")[0]
+
+
+def _densified(polyline: np.ndarray) -> np.ndarray:
+    """(S, 3) samples every SAMPLE_SPACING along a polyline (M, 3), its vertices where shorter."""
+    samples = sample_polyline(polyline, SAMPLE_SPACING)
+    return samples if len(samples) >= 2 else polyline
+
+
+def _backdrop(scene, view: int) -> np.ndarray:
+    """(H, W) grey picture of a view: the part's shading lifted and compressed, the background
+    (where the view has a mask) near white, so that coloured curves read over both."""
+    grey = 0.3 + 0.45 * scene.load_image(view).mean(axis=2)
+    mask = scene.load_mask(view)
+    return grey if mask is None else np.where(mask, grey, 0.95)
+
+
+def _frame(camera, points: np.ndarray, margin: float = 0.08) -> tuple[np.ndarray, np.ndarray]:
+    """Top-left and bottom-right pixel corners of a square around the projections of `points`
+    (N, 3) in front of `camera`, `margin` of its side wider; the whole image when none is."""
+    uv, depth = camera.project(points)
+    uv = uv[depth > 0]
+    if not len(uv):
+        return np.zeros(2), np.array([camera.width, camera.height], float)
+    low, high = uv.min(axis=0), uv.max(axis=0)
+    half = (1 + 2 * margin) * float(np.max(high - low)) / 2 + 1
+    return (low + high) / 2 - half, (low + high) / 2 + half
+
+
+def draw_missed_edges(diagnosis: Diagnosis, source: CurveSource, prediction: EdgeCurves, scene,
+                      out: Path, views: int = 2, title: str = "") -> list[int]:
+    """Write the picture (PNG, atomically) and return the views shown.
+
+    Args:
+        diagnosis: `edgedog.diagnosis.diagnose`'s report of `prediction`.
+        source: the ground-truth curves it diagnosed (ground-truth frame) and the part's mesh.
+        prediction: the predicted curves, ground-truth frame.
+        scene: the views diagnosed (cameras, images; world frame = inverse of its world_to_gt).
+        views: how many views to show; chosen by `choose_views` over the samples of the missed
+            curves and of the predicted curves on no edge that each view sees (on the part's
+            rendered mesh; without one, that it frames).
+    """
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    gt_to_world = np.linalg.inv(scene.world_to_gt)
+    to_world = lambda points: points @ gt_to_world[:3, :3].T + gt_to_world[:3, 3]  # noqa: E731
+    curves = [to_world(_densified(c.polyline)) for c in source.curves]
+    reports = {r.id: r for r in diagnosis.curves}
+    missed = [i for i, c in enumerate(source.curves) if reports[c.id].missed]
+    false_lines = [to_world(chain) for index, chain in enumerate(curve_polylines(prediction))
+                   if index in {f.index for f in diagnosis.false_curves}]
+    every = np.concatenate(curves) if curves else np.zeros((0, 3))
+    owner = np.repeat(np.arange(len(curves)), [len(c) for c in curves])
+    wrong = np.concatenate(false_lines) if false_lines else np.zeros((0, 3))
+    renderers: dict = {}
+    try:
+        seen, seen_wrong = [], []
+        for i in range(len(scene)):
+            camera = scene.camera(i)
+            render = None if source.mesh is None else render_mesh(renderers, source.mesh, gt_to_world, camera)
+            seen.append(visible_points(every, camera, render))
+            seen_wrong.append(visible_points(wrong, camera, render))
+    finally:
+        for renderer in renderers.values():
+            renderer.release()
+    seen = np.stack(seen)
+    shown = choose_views(np.concatenate([seen[:, np.isin(owner, missed)], np.stack(seen_wrong)], axis=1),
+                         views)
+
+    figure = Figure(figsize=(PANEL_INCHES * len(shown), PANEL_INCHES + 0.8))
+    FigureCanvasAgg(figure)
+    for panel, view in enumerate(shown):
+        axes = figure.add_subplot(1, len(shown), panel + 1)
+        camera = scene.camera(view)
+        axes.imshow(_backdrop(scene, view), cmap="gray", vmin=0, vmax=1)
+        for i, points in enumerate(curves):
+            uv, depth = camera.project(points)
+            if (depth <= 0).any():
+                continue
+            visible = seen[view, owner == i]
+            colour = MISSED if i in missed else FOUND
+            width = 2.2 if i in missed else 1.0
+            axes.plot(uv[:, 0], uv[:, 1], color=colour, lw=0.8, ls=":", alpha=0.7)
+            axes.plot(*np.where(visible[:, None], uv, np.nan).T, color=colour, lw=width)
+            if i in missed and visible.any():
+                x, y = uv[visible][visible.sum() // 2]
+                axes.annotate(str(source.curves[i].id), (x, y), color=MISSED, fontsize=8, weight="bold",
+                              xytext=(3, 3), textcoords="offset points")
+        for points in false_lines:
+            uv, depth = camera.project(points)
+            if (depth > 0).all():
+                axes.plot(uv[:, 0], uv[:, 1], color=FALSE, lw=1.4, ls="--")
+        (left, top), (right, bottom) = _frame(camera, every)
+        axes.set_xlim(left, right)
+        axes.set_ylim(bottom, top)
+        axes.set_xticks([])
+        axes.set_yticks([])
+        in_view = [i for i in missed if seen[view, owner == i].any()]
+        lines = [f"{source.curves[i].id} {reports[source.curves[i].id].kind}: "
+                 f"{_cause(reports[source.curves[i].id].cause)}" for i in in_view[:MAX_LISTED]]
+        if len(in_view) > MAX_LISTED:
+            lines.append(f"... {len(in_view) - MAX_LISTED} more")
+        axes.set_title(f"view {view}: {len(in_view)} missed curve(s) seen", fontsize=9)
+        if lines:
+            axes.text(0.01, 0.01, "\n".join(lines), transform=axes.transAxes, fontsize=6.5, va="bottom",
+                      color="white", bbox={"facecolor": "black", "alpha": 0.55, "lw": 0})
+    figure.suptitle((title + ": " if title else "") + f"{len(missed)} of {len(curves)} ground-truth curves "
+                    f"missed, {diagnosis.false_count} predicted on no edge\n"
+                    "ground truth found: green, missed: red (dotted where hidden)\n"
+                    "predicted curves on no edge: orange", fontsize=8)
+    figure.tight_layout()
+    buffer = io.BytesIO()
+    figure.savefig(buffer, format="png", dpi=100)
+    atomic_write_bytes(out, buffer.getvalue())
+    return shown
