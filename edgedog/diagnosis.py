@@ -325,7 +325,7 @@ def view_evidence(curves: list[GroundTruthCurve], mesh, scene, detector: str | N
     count = len(curves)
     seeing, drawn_views, outline_views = np.zeros(count, int), np.zeros(count, int), np.zeros(count, int)
     drawn_sum = np.zeros(count)
-    views = np.unique(np.linspace(0, len(scene) - 1, min(len(scene), MAX_VIEWS)).round().astype(int))
+    views = examined_views(len(scene))
     renderers: dict = {}
     try:
         for i in views:
@@ -358,6 +358,11 @@ def view_evidence(curves: list[GroundTruthCurve], mesh, scene, detector: str | N
         wedge_means = wedge_sums[..., 0] / wedge_sums[..., 1]
     return ViewEvidence(seeing if mesh is not None else None, drawn_views, outline_views,
                         drawn_sum / np.maximum(seeing, 1), wedge_means[:, 0], wedge_means[:, 1])
+
+
+def examined_views(count: int) -> np.ndarray:
+    """The views examined of a scene of `count`: every one, or MAX_VIEWS spread evenly."""
+    return np.unique(np.linspace(0, count - 1, min(count, MAX_VIEWS)).round().astype(int))
 
 
 def _looks_into_wedge(curves: list[GroundTruthCurve], middles: np.ndarray, tangents: np.ndarray,

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from edgedog.curve_files import EdgeCurves, curve_polylines
-from edgedog.diagnosis import CurveSource, Diagnosis, render_mesh, visible_points
+from edgedog.diagnosis import CurveSource, Diagnosis, examined_views, render_mesh, visible_points
 from edgedog.files import atomic_write_bytes
 from edgedog.metrics import SAMPLE_SPACING, sample_polyline
 
@@ -71,6 +71,64 @@ def _frame(camera, points: np.ndarray, margin: float = 0.08) -> tuple[np.ndarray
     return (low + high) / 2 - half, (low + high) / 2 + half
 
 
+def _in_world(points: np.ndarray, gt_to_world: np.ndarray) -> np.ndarray:
+    return points @ gt_to_world[:3, :3].T + gt_to_world[:3, 3]
+
+
+def _visibility(scene, mesh, gt_to_world: np.ndarray, views: np.ndarray,
+                point_sets: list[np.ndarray]) -> list[np.ndarray]:
+    """For each set of world points (N_k, 3), (len(views), N_k) bool: whether each view sees each
+    point (on the part's mesh rendered from it; without a mesh, whether it frames the point)."""
+    renderers: dict = {}
+    seen: list[list[np.ndarray]] = [[] for _ in point_sets]
+    try:
+        for view in views:
+            camera = scene.camera(int(view))
+            render = None if mesh is None else render_mesh(renderers, mesh, gt_to_world, camera)
+            for k, points in enumerate(point_sets):
+                seen[k].append(visible_points(points, camera, render))
+    finally:
+        for renderer in renderers.values():
+            renderer.release()
+    return [np.stack(rows) for rows in seen]
+
+
+def _draw_panel(axes, scene, view: int, curves: list[np.ndarray], visible: list[np.ndarray], missed: set[int],
+                labels: list[str], false_lines: list[np.ndarray], every: np.ndarray) -> None:
+    """One view: its picture, the ground-truth curves (world, each with its (S,) visibility) by
+    outcome, the false curves, and the missed curves it sees named with their causes (`labels`)."""
+    camera = scene.camera(view)
+    axes.imshow(_backdrop(scene, view), cmap="gray", vmin=0, vmax=1)
+    for i, (points, seen) in enumerate(zip(curves, visible)):
+        uv, depth = camera.project(points)
+        if (depth <= 0).any():
+            continue
+        colour, width = (MISSED, 2.2) if i in missed else (FOUND, 1.0)
+        axes.plot(uv[:, 0], uv[:, 1], color=colour, lw=0.8, ls=":", alpha=0.7)
+        axes.plot(*np.where(seen[:, None], uv, np.nan).T, color=colour, lw=width)
+        if i in missed and seen.any():
+            x, y = uv[seen][seen.sum() // 2]
+            axes.annotate(labels[i].split()[0], (x, y), color=MISSED, fontsize=8, weight="bold",
+                          xytext=(3, 3), textcoords="offset points")
+    for points in false_lines:
+        uv, depth = camera.project(points)
+        if (depth > 0).all():
+            axes.plot(uv[:, 0], uv[:, 1], color=FALSE, lw=1.4, ls="--")
+    (left, top), (right, bottom) = _frame(camera, every)
+    axes.set_xlim(left, right)
+    axes.set_ylim(bottom, top)
+    axes.set_xticks([])
+    axes.set_yticks([])
+    in_view = [labels[i] for i in sorted(missed) if visible[i].any()]
+    listed = in_view[:MAX_LISTED]
+    if len(in_view) > MAX_LISTED:
+        listed.append(f"... {len(in_view) - MAX_LISTED} more")
+    axes.set_title(f"view {view}: {len(in_view)} missed curve(s) seen", fontsize=9)
+    if listed:
+        axes.text(0.01, 0.01, "\n".join(listed), transform=axes.transAxes, fontsize=6.5, va="bottom",
+                  color="white", bbox={"facecolor": "black", "alpha": 0.55, "lw": 0})
+
+
 def draw_missed_edges(diagnosis: Diagnosis, source: CurveSource, prediction: EdgeCurves, scene,
                       out: Path, views: int = 2, title: str = "") -> list[int]:
     """Write the picture (PNG, atomically) and return the views shown.
@@ -80,75 +138,34 @@ def draw_missed_edges(diagnosis: Diagnosis, source: CurveSource, prediction: Edg
         source: the ground-truth curves it diagnosed (ground-truth frame) and the part's mesh.
         prediction: the predicted curves, ground-truth frame.
         scene: the views diagnosed (cameras, images; world frame = inverse of its world_to_gt).
-        views: how many views to show; chosen by `choose_views` over the samples of the missed
-            curves and of the predicted curves on no edge that each view sees (on the part's
-            rendered mesh; without one, that it frames).
+        views: how many views to show; chosen by `choose_views`, among the views the diagnosis
+            examines, over the samples of the missed curves and of the predicted curves on no
+            edge that each view sees.
     """
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
     gt_to_world = np.linalg.inv(scene.world_to_gt)
-    to_world = lambda points: points @ gt_to_world[:3, :3].T + gt_to_world[:3, 3]  # noqa: E731
-    curves = [to_world(_densified(c.polyline)) for c in source.curves]
+    curves = [_in_world(_densified(c.polyline), gt_to_world) for c in source.curves]
     reports = {r.id: r for r in diagnosis.curves}
-    missed = [i for i, c in enumerate(source.curves) if reports[c.id].missed]
-    false_lines = [to_world(chain) for index, chain in enumerate(curve_polylines(prediction))
-                   if index in {f.index for f in diagnosis.false_curves}]
+    missed = {i for i, c in enumerate(source.curves) if reports[c.id].missed}
+    labels = [f"{c.id} {reports[c.id].kind}: {_cause(reports[c.id].cause)}" for c in source.curves]
+    false_indices = {f.index for f in diagnosis.false_curves}
+    false_lines = [_in_world(chain, gt_to_world) for index, chain in enumerate(curve_polylines(prediction))
+                   if index in false_indices]
     every = np.concatenate(curves) if curves else np.zeros((0, 3))
     owner = np.repeat(np.arange(len(curves)), [len(c) for c in curves])
-    wrong = np.concatenate(false_lines) if false_lines else np.zeros((0, 3))
-    renderers: dict = {}
-    try:
-        seen, seen_wrong = [], []
-        for i in range(len(scene)):
-            camera = scene.camera(i)
-            render = None if source.mesh is None else render_mesh(renderers, source.mesh, gt_to_world, camera)
-            seen.append(visible_points(every, camera, render))
-            seen_wrong.append(visible_points(wrong, camera, render))
-    finally:
-        for renderer in renderers.values():
-            renderer.release()
-    seen = np.stack(seen)
-    shown = choose_views(np.concatenate([seen[:, np.isin(owner, missed)], np.stack(seen_wrong)], axis=1),
-                         views)
+    examined = examined_views(len(scene))
+    seen, seen_false = _visibility(scene, source.mesh, gt_to_world, examined,
+                                   [every, np.concatenate(false_lines) if false_lines else np.zeros((0, 3))])
+    rows = choose_views(np.concatenate([seen[:, np.isin(owner, sorted(missed))], seen_false], axis=1), views)
 
-    figure = Figure(figsize=(PANEL_INCHES * len(shown), PANEL_INCHES + 0.8))
+    figure = Figure(figsize=(PANEL_INCHES * len(rows), PANEL_INCHES + 0.8))
     FigureCanvasAgg(figure)
-    for panel, view in enumerate(shown):
-        axes = figure.add_subplot(1, len(shown), panel + 1)
-        camera = scene.camera(view)
-        axes.imshow(_backdrop(scene, view), cmap="gray", vmin=0, vmax=1)
-        for i, points in enumerate(curves):
-            uv, depth = camera.project(points)
-            if (depth <= 0).any():
-                continue
-            visible = seen[view, owner == i]
-            colour = MISSED if i in missed else FOUND
-            width = 2.2 if i in missed else 1.0
-            axes.plot(uv[:, 0], uv[:, 1], color=colour, lw=0.8, ls=":", alpha=0.7)
-            axes.plot(*np.where(visible[:, None], uv, np.nan).T, color=colour, lw=width)
-            if i in missed and visible.any():
-                x, y = uv[visible][visible.sum() // 2]
-                axes.annotate(str(source.curves[i].id), (x, y), color=MISSED, fontsize=8, weight="bold",
-                              xytext=(3, 3), textcoords="offset points")
-        for points in false_lines:
-            uv, depth = camera.project(points)
-            if (depth > 0).all():
-                axes.plot(uv[:, 0], uv[:, 1], color=FALSE, lw=1.4, ls="--")
-        (left, top), (right, bottom) = _frame(camera, every)
-        axes.set_xlim(left, right)
-        axes.set_ylim(bottom, top)
-        axes.set_xticks([])
-        axes.set_yticks([])
-        in_view = [i for i in missed if seen[view, owner == i].any()]
-        lines = [f"{source.curves[i].id} {reports[source.curves[i].id].kind}: "
-                 f"{_cause(reports[source.curves[i].id].cause)}" for i in in_view[:MAX_LISTED]]
-        if len(in_view) > MAX_LISTED:
-            lines.append(f"... {len(in_view) - MAX_LISTED} more")
-        axes.set_title(f"view {view}: {len(in_view)} missed curve(s) seen", fontsize=9)
-        if lines:
-            axes.text(0.01, 0.01, "\n".join(lines), transform=axes.transAxes, fontsize=6.5, va="bottom",
-                      color="white", bbox={"facecolor": "black", "alpha": 0.55, "lw": 0})
+    for panel, row in enumerate(rows):
+        visible = [seen[row, owner == i] for i in range(len(curves))]
+        _draw_panel(figure.add_subplot(1, len(rows), panel + 1), scene, int(examined[row]), curves, visible,
+                    missed, labels, false_lines, every)
     figure.suptitle((title + ": " if title else "") + f"{len(missed)} of {len(curves)} ground-truth curves "
                     f"missed, {diagnosis.false_count} predicted on no edge\n"
                     "ground truth found: green, missed: red (dotted where hidden)\n"
@@ -157,4 +174,4 @@ def draw_missed_edges(diagnosis: Diagnosis, source: CurveSource, prediction: Edg
     buffer = io.BytesIO()
     figure.savefig(buffer, format="png", dpi=100)
     atomic_write_bytes(out, buffer.getvalue())
-    return shown
+    return [int(examined[row]) for row in rows]
