@@ -160,16 +160,18 @@ def draw_missed_edges(diagnosis: Diagnosis, source: CurveSource, prediction: Edg
                                    [every, np.concatenate(false_lines) if false_lines else np.zeros((0, 3))])
     rows = choose_views(np.concatenate([seen[:, np.isin(owner, sorted(missed))], seen_false], axis=1), views)
 
-    figure = Figure(figsize=(PANEL_INCHES * len(rows), PANEL_INCHES + 0.8))
+    figure = Figure(figsize=(PANEL_INCHES * len(rows), PANEL_INCHES + 1.0))
     FigureCanvasAgg(figure)
     for panel, row in enumerate(rows):
         visible = [seen[row, owner == i] for i in range(len(curves))]
         _draw_panel(figure.add_subplot(1, len(rows), panel + 1), scene, int(examined[row]), curves, visible,
                     missed, labels, false_lines, every)
-    figure.suptitle((title + ": " if title else "") + f"{len(missed)} of {len(curves)} ground-truth curves "
-                    f"missed, {diagnosis.false_count} predicted on no edge\n"
-                    "ground truth found: green, missed: red (dotted where hidden)\n"
-                    "predicted curves on no edge: orange", fontsize=8)
+    heading = [title] if title else []
+    heading += [f"{len(missed)} of {len(curves)} ground-truth curves missed, "
+                f"{diagnosis.false_count} predicted on no edge",
+                "ground truth found: green, missed: red (dotted where hidden)",
+                "predicted curves on no edge: orange"]
+    figure.suptitle("\n".join(heading), fontsize=8)
     figure.tight_layout()
     buffer = io.BytesIO()
     figure.savefig(buffer, format="png", dpi=100)

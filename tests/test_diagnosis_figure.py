@@ -41,7 +41,7 @@ def test_the_figure_shows_the_missed_curve_in_views_that_see_it(bracket_scene, t
     views = [int(v) for v in out.split("figure written to")[1].split("(views ")[1].split(")")[0].split(", ")]
     assert len(views) == 1  # the first view sees the whole removed curve: a second adds nothing
     picture = imread(figure)
-    assert picture.shape[:2] == (580, 500)  # one panel
+    assert picture.shape[:2] == (600, 500)  # one panel
     assert _missed_colour_near(picture).sum() > 50  # the missed curve, drawn
     # each view shown sees the removed curve (its middle in the view's image, on the part)
     scene = load_scene(bracket_scene)
@@ -73,3 +73,21 @@ def test_the_figure_is_never_written_inside_the_scene(bracket_scene, tmp_path, c
     assert main(["eval", str(run), "--scene", str(bracket_scene), "--per-curve", "--json",
                  str(tmp_path / "e.json"), "--figure", str(inside)]) != 0
     assert "scene folder" in capsys.readouterr().err and not inside.exists()
+
+
+def test_without_a_mesh_every_curve_the_view_frames_is_drawn(abc_emap_scene_dir, tmp_path, capsys):
+    """EMAP's 00004926 has no mesh: visibility is framing; the curve left out is still named."""
+    from edgedog.curve_files import EdgeCurves, write_edges
+    from edgedog.groundtruth import abc_curves, ground_truth_for
+
+    curves = abc_curves(ground_truth_for(abc_emap_scene_dir))
+    pred = tmp_path / "pred.obj"
+    write_edges(pred, EdgeCurves(polylines=[c.polyline for c in curves[1:]]))
+    figure = tmp_path / "emap.png"
+    assert main(["eval", str(pred), "--scene", str(abc_emap_scene_dir), "--frame", "gt", "--per-curve",
+                 "--json", str(tmp_path / "e.json"), "--figure", str(figure), "--figure-views", "1"]) == 0
+    assert "figure written to" in capsys.readouterr().out
+    report = json.loads((tmp_path / "e.json").read_text())["per_curve"]
+    missed = [c["id"] for c in report["curves"] if c["missed"]]
+    assert missed == [curves[0].id]
+    assert imread(figure).shape[:2] == (600, 500) and _missed_colour_near(imread(figure)).sum() > 20
