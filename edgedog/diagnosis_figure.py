@@ -71,10 +71,6 @@ def _frame(camera, points: np.ndarray, margin: float = 0.08) -> tuple[np.ndarray
     return (low + high) / 2 - half, (low + high) / 2 + half
 
 
-def _in_world(points: np.ndarray, gt_to_world: np.ndarray) -> np.ndarray:
-    return points @ gt_to_world[:3, :3].T + gt_to_world[:3, 3]
-
-
 def _visibility(scene, mesh, gt_to_world: np.ndarray, views: np.ndarray,
                 point_sets: list[np.ndarray]) -> list[np.ndarray]:
     """For each set of world points (N_k, 3), (len(views), N_k) bool: whether each view sees each
@@ -146,13 +142,14 @@ def draw_missed_edges(diagnosis: Diagnosis, source: CurveSource, prediction: Edg
     from matplotlib.figure import Figure
 
     gt_to_world = np.linalg.inv(scene.world_to_gt)
-    curves = [_in_world(_densified(c.polyline), gt_to_world) for c in source.curves]
+    densified = EdgeCurves(polylines=[_densified(c.polyline) for c in source.curves])
+    curves = densified.transformed(gt_to_world).polylines
     reports = {r.id: r for r in diagnosis.curves}
     missed = {i for i, c in enumerate(source.curves) if reports[c.id].missed}
     labels = [f"{c.id} {reports[c.id].kind}: {_cause(reports[c.id].cause)}" for c in source.curves]
     false_indices = {f.index for f in diagnosis.false_curves}
-    false_lines = [_in_world(chain, gt_to_world) for index, chain in enumerate(curve_polylines(prediction))
-                   if index in false_indices]
+    false_lines = EdgeCurves(polylines=[chain for index, chain in enumerate(curve_polylines(prediction))
+                                        if index in false_indices]).transformed(gt_to_world).polylines
     every = np.concatenate(curves) if curves else np.zeros((0, 3))
     owner = np.repeat(np.arange(len(curves)), [len(c) for c in curves])
     examined = examined_views(len(scene))

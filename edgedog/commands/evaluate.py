@@ -95,9 +95,7 @@ def run(args: argparse.Namespace) -> None:
                                    "--json FILE outside it")
     check_new_file(out, args.force, default)  # before the work, not after it
     if args.figure is not None:
-        if enclosing_scene(args.figure) is not None:
-            raise OutputError(args.figure, "lies inside a scene folder, where edgedog never writes")
-        check_new_file(args.figure, args.force)
+        check_new_file(args.figure, args.force)  # also refuses a scene folder
     args.pred, run_folder = prediction_and_run(args.pred)
     if args.scene is not None:
         scene = load_scene(args.scene)
