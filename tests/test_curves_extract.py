@@ -359,6 +359,38 @@ def test_outlier_filter_on_auto_runs_when_the_silhouette_filter_is_switched_off(
     assert not np.isclose(result.points.points[:, 0], 0.2).any()
 
 
+def test_chain_mask_keeps_a_sparse_line_not_a_scatter_nor_a_short_stub():
+    rng = np.random.default_rng(0)
+    line = np.stack([np.zeros(12), np.zeros(12), np.linspace(0.0, 0.33, 12)], axis=1)  # 0.03 apart
+    stub = line[:3] + [0.3, 0.0, 0.0]  # three points spanning 0.06
+    scatter = rng.uniform(-0.5, 0.5, (30, 3)) + [0.0, 0.8, 0.0]
+    directions = np.vstack([np.tile([0.0, 0.0, 1.0], (15, 1)), rng.normal(size=(30, 3))])
+    directions /= np.linalg.norm(directions, axis=1, keepdims=True)
+    on_chain = filtering.chain_mask(np.vstack([line, stub, scatter]), directions, radius=0.045,
+                                    min_extent=0.2, min_cos=np.cos(np.radians(30)))
+    assert on_chain[:12].all() and not on_chain[12:].any()
+    assert filtering.chain_mask(np.zeros((0, 3)), np.zeros((0, 3)), 0.045, 0.2, 0.5).shape == (0,)
+
+
+def test_outlier_chains_spare_a_sparse_edge_but_not_floaters(tmp_path):
+    points, directions = _dense_and_sparse_edges()
+    floaters = np.array([[0.5, 0.3, 0.1], [-0.3, -0.4, 0.0]])
+    write_primitives(tmp_path / "primitives.ply", np.vstack([points, floaters]),
+                     np.vstack([directions, [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]]), 0.6)
+    primitives = EdgePrimitives.from_arrays(read_ply(tmp_path / "primitives.ply"))
+    # Lengths relative to the points' size: about 0.45 without the floaters, 0.9 with them.
+    config = ExtractConfig(filter_projection=False, filter_outliers="on", outlier_chains=True,
+                           chain_radius=0.1, chain_extent=0.2)
+    kept = extract_primitives(primitives, config, None, None).points.points
+    assert np.isclose(kept[:, 0], 0.2).sum() == 12 and np.isclose(kept[:, 0], 0.0).sum() == 200
+    assert len(kept) == 212  # both floaters dropped
+    write_primitives(tmp_path / "edges.ply", points, directions, 0.6)  # no floaters to widen the statistics
+    edges = EdgePrimitives.from_arrays(read_ply(tmp_path / "edges.ply"))
+    assert np.isclose(extract_primitives(edges, config, None, None).points.points[:, 0], 0.2).sum() == 12
+    plain = extract_primitives(edges, dataclasses.replace(config, outlier_chains=False), None, None)
+    assert not np.isclose(plain.points.points[:, 0], 0.2).any()
+
+
 def test_outlier_filter_setting_is_a_choice():
     with pytest.raises(ConfigError, match="filter_outliers must be one of auto, on, off"):
         ExtractConfig(filter_outliers=False)

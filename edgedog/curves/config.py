@@ -85,6 +85,16 @@ class ExtractConfig(Settings):
     """EdgeGaussians use 25 neighbours; an edge held by fewer primitives than that reaches across
     to other edges and is dropped whole, so 8 (docs/BENCHMARKS.md)."""
     outlier_std: Annotated[float, Range(0)] = 2.0
+    outlier_chains: bool = False
+    """Spare the outliers on a chain (`filtering.chain_mask`): points linked within
+    `chain_radius`, their directions and offsets agreeing within `link_angle`, spanning at least
+    `chain_extent`: edges that training holds with few primitives. On the CAD benchmark's 42
+    `quick` runs F10 +0.3 (docs/RESULTS.md, "Sparing the outliers on chains")."""
+    chain_radius: SceneLength = 0.02
+    """Longest link of `outlier_chains`' chains (a fraction of the scene size, measured before the
+    outlier filter over the points inside the silhouettes)."""
+    chain_extent: SceneLength = 0.06
+    """Shortest chain that `outlier_chains` spares (the diagonal of its bounding box)."""
     filter_contours: bool = True
     """Drop the points on the occluding contours of curved faces: those that most views drawing
     them see at grazing incidence on the object's visual hull (`edgedog.curves.contours`);

@@ -76,6 +76,16 @@ def edge_directions(primitives: EdgePrimitives, config: ExtractConfig) -> np.nda
     return directions
 
 
+def _on_chains(primitives: EdgePrimitives, config: ExtractConfig, inside: np.ndarray | None) -> np.ndarray:
+    """(N,) `filtering.chain_mask` of the primitives with `config`'s chain settings, its lengths
+    relative to the size of the points inside the silhouettes (`inside`; all without masks): the
+    floaters the outlier filter is there for would stretch the scene's size."""
+    size = scene_size(primitives.points if inside is None else primitives.points[inside])
+    return filtering.chain_mask(primitives.points, edge_directions(primitives, config),
+                                config.chain_radius * size, config.chain_extent * size,
+                                math.cos(math.radians(config.link_angle)))
+
+
 @dataclass
 class RunExtraction:
     """What `extract_run` produced.
@@ -138,6 +148,8 @@ def filter_primitives(primitives: EdgePrimitives, config: ExtractConfig, scene: 
               if config.filter_silhouette and scene is not None else None)
     if config.filter_outliers == "on" or (config.filter_outliers == "auto" and inside is None):
         keep = filtering.outlier_mask(primitives.points, config.outlier_neighbours, config.outlier_std)
+        if config.outlier_chains and not keep.all():
+            keep |= _on_chains(primitives, config, inside)
         primitives = primitives.subset(keep)
         inside = None if inside is None else inside[keep]
         counts["after_outliers"] = len(primitives)

@@ -1,12 +1,16 @@
 """Point filters, each returning a keep mask (N,): EdgeGaussians' three (opacity, projection,
-statistical outliers) and a silhouette test of our own."""
+statistical outliers), a silhouette test of our own, and the chains that the outlier filter
+spares."""
 
 from __future__ import annotations
 
 import cv2
 import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
+from edgedog.curves.grouping import candidate_links
 from edgedog.errors import InputError
 from edgedog.scenes import Scene
 
@@ -35,6 +39,28 @@ def view_weights(points: np.ndarray, opacity: np.ndarray, opacity_dirs: np.ndarr
     largest = np.log(clipped) - np.log1p(-clipped)  # the largest logit, a + max over views of b . d
     logits = largest[None, :] - (tilt.max(axis=0)[None, :] - tilt)
     return 1.0 / (1.0 + np.exp(-logits)) / clipped[None, :]
+
+
+def chain_mask(points: np.ndarray, directions: np.ndarray, radius: float, min_extent: float,
+               min_cos: float) -> np.ndarray:
+    """(N,) True for the points (N, 3) on a chain: a connected set linked by candidate links
+    (`grouping.candidate_links`: within `radius`, directions (N, 3) and offset parallel within
+    |cos| > `min_cos`) whose bounding box's diagonal is at least `min_extent`.
+
+    An edge that training holds with few primitives (one that few views see) is such a chain, and
+    the statistical outlier filter, whose statistics follow the density of the other edges, takes
+    it for outliers; a scattered floater is not one.
+    """
+    if len(points) == 0:
+        return np.zeros(0, dtype=bool)
+    pairs, _ = candidate_links(points, directions, radius, min_cos)
+    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(len(points), len(points)))
+    count, labels = connected_components(graph, directed=False)
+    low = np.full((count, 3), np.inf)
+    high = np.full((count, 3), -np.inf)
+    np.minimum.at(low, labels, points)
+    np.maximum.at(high, labels, points)
+    return (np.linalg.norm(high - low, axis=1) >= min_extent)[labels]
 
 
 def mean_edge_values(points: np.ndarray, scene: Scene, detector: str,
