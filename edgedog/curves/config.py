@@ -114,6 +114,23 @@ class ExtractConfig(Settings):
     """A view grazes a point only where it grazes the hull's normals this many cells around it
     too (0: the point's own normal): at an edge the hull creases, and no view grazes both faces."""
 
+    # --- completion
+    complete_lines: bool = False
+    """Add the straight edges the curves miss, triangulated from the line segments the edge maps
+    draw where no curve projects and refined on the views that draw them
+    (`edgedog.curves.completion`): edges few views see, on which no primitive formed. Skipped on
+    scenes without masks."""
+    completion_views: Annotated[int, Range(2, 1000)] = 5
+    """A completed line is drawn, among the pixels no curve explains, by at least this many views."""
+    completion_cover: Annotated[float, Range(0, 1, open_low=True)] = 0.75
+    """A view draws a line where this share of its points lands on drawn pixels."""
+    completion_spread: Annotated[float, Range(0, 180)] = 20.0
+    """Degrees between the directions of the two farthest views that draw a completed line."""
+    completion_contour_share: Share = 0.3
+    """A completed line is an occluding contour, and dropped, where more than this share of the
+    views drawing it see it at grazing incidence (the contour filter's test, stricter: a ruled
+    face's contours are straight)."""
+
     # --- directions
     min_elongation: Annotated[float, Range(1)] = 1.5
     """A primitive's own axis (largest scale) is its direction when largest / middle scale is at

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from edgedog.curve_files import EdgeCurves, write_edges
-from edgedog.curves import contours, filtering, fitting, grouping, junctions, topology
+from edgedog.curves import completion, contours, filtering, fitting, grouping, junctions, topology
 from edgedog.curves.config import ExtractConfig
 from edgedog.errors import InputError
 from edgedog.files import read_json
@@ -183,13 +183,18 @@ def extract_primitives(primitives: EdgePrimitives, config: ExtractConfig = Extra
     Args:
         primitives: e.g. `EdgePrimitives.from_arrays` of a snapshot's or a PLY's primitives.
         scene, detector: the run's scene and the name of its edge maps (loaded), needed by the
-            projection filter (the silhouette filter needs the scene only).
+            projection and contour filters and the line completion (the silhouette filter needs
+            the scene only).
     """
     counts: dict[str, int] = {}
     points = filter_primitives(primitives, config, scene, detector, counts)
     directions = edge_directions(points, config)
     curves, chains = extract_curves(points.points, directions, config)
     counts.update(chains=len(chains), lines=len(curves.lines), beziers=len(curves.beziers))
+    if config.complete_lines and scene is not None and detector is not None:
+        added = completion.complete_lines(curves, scene, detector, scene_size(points.points), config)
+        curves = EdgeCurves(lines=np.concatenate([curves.lines, added]), beziers=curves.beziers)
+        counts["completed_lines"] = len(added)
     return RunExtraction(curves, points, directions, counts)
 
 
@@ -210,9 +215,9 @@ def extract_run(run_dir: str | Path, config: ExtractConfig = ExtractConfig(), sc
     primitives = EdgePrimitives.from_arrays(read_ply(run_dir / "primitives.ply"))
     if layers is not None:
         primitives = primitives.in_layers(layers)
-    if (config.filter_projection or config.filter_silhouette or config.filter_contours) and (
-            scene is None or detector is None):
-        scene, detector = run_scene(run_dir, maps=config.filter_projection or config.filter_contours)
+    with_maps = config.filter_projection or config.filter_contours or config.complete_lines
+    if (with_maps or config.filter_silhouette) and (scene is None or detector is None):
+        scene, detector = run_scene(run_dir, maps=with_maps)
     result = extract_primitives(primitives, config, scene, detector)
     for name in OUTPUTS[:3]:
         write_edges(out_dir / name, result.curves)
