@@ -119,7 +119,8 @@ class ExtractConfig(Settings):
     """Add the straight edges the curves miss, triangulated from the line segments the edge maps
     draw where no curve projects and refined on the views that draw them
     (`edgedog.curves.completion`): edges few views see, on which no primitive formed. Skipped on
-    scenes without masks."""
+    scenes without masks. On the CAD benchmark's 42 `quick` runs F10 +0.2, concave recall 54.5 ->
+    57.8 % (docs/RESULTS.md, "Completing straight edges from the maps")."""
     completion_views: Annotated[int, Range(2, 1000)] = 5
     """A completed line is drawn, among the pixels no curve explains, by at least this many views."""
     completion_cover: Annotated[float, Range(0, 1, open_low=True)] = 0.75
