@@ -1,7 +1,8 @@
 """Line completion (extract.complete_lines): two views' segments triangulate their 3D line, a line
 found a centimetre off is refined onto the views' ridges, and on the L-bracket's scene the edge
 taken out of the curves comes back, nothing else does, and nothing is added where every edge is
-already there or the curves are empty."""
+already there, the curves are empty or the maps draw nothing; two views that are one give no
+line."""
 
 from __future__ import annotations
 
@@ -52,6 +53,12 @@ def test_two_views_segments_triangulate_their_3d_segment():
     assert np.abs(ends - SEGMENT).max() < 0.01  # rounded pixel ends: a few mm
 
 
+def test_one_view_paired_with_itself_gives_nothing_and_no_nan():
+    view = _evidence(orbit_cameras(24, SIZE)[0], SEGMENT)
+    with np.errstate(all="raise"):  # parallel planes: no division by zero reaches the result
+        assert pair_candidates(view, view, 0.01).shape == (0, 2, 3)
+
+
 def test_a_line_a_centimetre_off_is_refined_onto_the_views_ridges():
     cameras = orbit_cameras(24, SIZE)
     views = [_evidence(camera, SEGMENT) for camera in cameras]
@@ -99,3 +106,10 @@ def test_nothing_is_added_where_every_edge_is_found_or_no_curve_is(bracket):
     part, scene, every, size = bracket
     assert len(_complete(scene, EdgeCurves(lines=every), size)) == 0
     assert len(_complete(scene, EdgeCurves(), size)) == 0
+
+
+def test_empty_edge_maps_add_nothing(bracket, monkeypatch):
+    part, scene, every, size = bracket
+    blank = np.zeros((scene.camera(0).height, scene.camera(0).width), np.float32)
+    monkeypatch.setattr(scene, "load_edge_map", lambda index, detector=None: blank)
+    assert _complete(scene, EdgeCurves(lines=every[1:]), size).shape == (0, 2, 3)

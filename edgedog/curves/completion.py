@@ -54,6 +54,8 @@ MIN_PLANE_ANGLE = 5.0
 """Degrees between the two segments' planes: below it their line is ill-conditioned."""
 MAX_CANDIDATES = 200_000
 """The longest candidates kept before scoring (each costs samples x views lookups)."""
+MAX_REFINED = 5_000
+"""The best supported candidates refined (each refinement reads every supporting view)."""
 SAMPLES = 12
 """Points along a candidate where the views are read."""
 REFINEMENTS = 2
@@ -168,6 +170,30 @@ def view_pairs(cameras: list[Camera]) -> list[tuple[int, int]]:
     return sorted(pairs)
 
 
+def _lengths(segments: np.ndarray) -> np.ndarray:
+    return np.linalg.norm(segments[:, 1] - segments[:, 0], axis=1)
+
+
+def _longest(segments: np.ndarray, limit: int) -> np.ndarray:
+    return segments[np.argsort(-_lengths(segments), kind="stable")[:limit]]
+
+
+def all_candidates(views: list[ViewEvidence], bounds: np.ndarray, min_length: float) -> np.ndarray:
+    """(C, 2, 3) the longest `MAX_CANDIDATES` of every view pair's candidates (`view_pairs`,
+    `pair_candidates`) inside `bounds` (2, 3), trimmed as they come so that memory stays bounded."""
+    found, total = [], 0
+    for i, j in view_pairs([view.camera for view in views]):
+        if not (len(views[i].segments) and len(views[j].segments)):
+            continue
+        pair = pair_candidates(views[i], views[j], min_length)
+        found.append(pair[np.all((pair > bounds[0]) & (pair < bounds[1]), axis=(1, 2))])
+        total += len(found[-1])
+        if total > 2 * MAX_CANDIDATES:
+            found = [_longest(np.concatenate(found), MAX_CANDIDATES)]
+            total = len(found[0])
+    return _longest(np.concatenate(found), MAX_CANDIDATES) if found else np.empty((0, 2, 3))
+
+
 def samples_along(segments: np.ndarray, count: int = SAMPLES) -> np.ndarray:
     """(C, count, 3) evenly spaced points of segments (C, 2, 3), ends included."""
     w = np.linspace(0.0, 1.0, count)[None, :, None]
@@ -262,16 +288,12 @@ def complete_lines(curves: EdgeCurves, scene: Scene, detector: str, size: float,
     existing = curves.sample(size / 1000)
     views = [view_evidence(scene.camera(i), scene.load_edge_map(i, detector), masks[i], existing)
              for i in range(len(scene))]
-    low, high = np.asarray(scene.bounds, dtype=np.float64)
-    found = [pair_candidates(views[i], views[j], MIN_OVERLAP * size) for i, j in view_pairs(scene.cameras)
-             if len(views[i].segments) and len(views[j].segments)]
-    candidates = np.concatenate(found) if found else np.empty((0, 2, 3))
-    candidates = candidates[np.all((candidates > low) & (candidates < high), axis=(1, 2))]
-    lengths = np.linalg.norm(candidates[:, 1] - candidates[:, 0], axis=1)
-    candidates = candidates[np.argsort(-lengths, kind="stable")[:MAX_CANDIDATES]]
+    candidates = all_candidates(views, np.asarray(scene.bounds, dtype=np.float64), MIN_OVERLAP * size)
     supported, outside = support(views, samples_along(candidates), False, cover)
-    candidates = candidates[(supported.sum(axis=1) >= min_views) & ~outside]
-    supported = supported[(supported.sum(axis=1) >= min_views) & ~outside]
+    count = supported.sum(axis=1)
+    best = np.lexsort((-_lengths(candidates), -count))[:MAX_REFINED]
+    best = best[(count[best] >= min_views) & ~outside[best]]
+    candidates, supported = candidates[best], supported[best]
     for _ in range(REFINEMENTS):
         candidates = np.stack([refine(views, c, s) for c, s in zip(candidates, supported)]) \
             if len(candidates) else candidates
@@ -288,5 +310,4 @@ def complete_lines(curves: EdgeCurves, scene: Scene, detector: str, size: float,
         if not_contour is not None:
             keep = not_contour.reshape(-1, SAMPLES).mean(axis=1) >= 0.5
             candidates, count = candidates[keep], count[keep]
-    lengths = np.linalg.norm(candidates[:, 1] - candidates[:, 0], axis=1)
-    return candidates[suppress(candidates, np.lexsort((-lengths, -count)), NOVELTY * size)]
+    return candidates[suppress(candidates, np.lexsort((-_lengths(candidates), -count)), NOVELTY * size)]
