@@ -109,15 +109,10 @@ def view_evidence(camera: Camera, edge_map: np.ndarray, mask: np.ndarray,
     return ViewEvidence(camera, edge_map, _dilate(drawn, 2), _dilate(unexplained, 1), hull, segments)
 
 
-def _ray_directions(camera: Camera, pixels: np.ndarray) -> np.ndarray:
-    """(N, 3) world directions of the rays through pixels (N, 2)."""
-    return np.c_[pixels, np.ones(len(pixels))] @ np.linalg.inv(camera.K).T @ camera.R
-
-
 def segment_planes(camera: Camera, segments: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Rays through each segment's two ends (S, 3) each, and the unit normal (S, 3) of the plane
     they span with the camera centre."""
-    start, end = _ray_directions(camera, segments[:, :2]), _ray_directions(camera, segments[:, 2:])
+    start, end = camera.ray_directions(segments[:, :2]), camera.ray_directions(segments[:, 2:])
     normal = np.cross(start, end)
     return start, end, normal / np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-18)
 

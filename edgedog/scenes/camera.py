@@ -76,6 +76,12 @@ class Camera:
         uv = (cam[:, :2] / safe[:, None]) @ self.K[:2, :2].T + self.K[:2, 2]
         return uv, depth
 
+    def ray_directions(self, pixels: np.ndarray) -> np.ndarray:
+        """(N, 3) world directions of the rays through pixels (N, 2), scaled so that a ray's
+        parameter is its point's camera z (the camera-space direction has z = 1)."""
+        homogeneous = np.c_[pixels, np.ones(len(pixels))]
+        return (homogeneous @ np.linalg.inv(self.K).T) @ self.R
+
     def pixels(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Nearest pixel of each world point, and whether it is a pixel of this image.
 

@@ -71,9 +71,8 @@ def hull_depth(grid: HullGrid, camera: Camera, mask: np.ndarray | None) -> np.nd
     rows, cols = np.nonzero(np.ones((height, width), bool) if mask is None else mask)
     if not len(rows):
         return depth
-    pixels = np.stack([cols, rows, np.ones_like(cols)], axis=1).astype(np.float64)
-    # A ray's parameter t is its point's camera z: the camera-space direction has z = 1.
-    directions = (pixels @ np.linalg.inv(camera.K).T) @ camera.R
+    # A ray's parameter t is its point's camera z.
+    directions = camera.ray_directions(np.stack([cols, rows], axis=1).astype(np.float64))
     low = grid.origin
     entry, leave = box_span(np.broadcast_to(camera.center, directions.shape), directions, low,
                             low + grid.resolution * grid.cell)
