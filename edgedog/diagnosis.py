@@ -518,7 +518,7 @@ def filter_losses(indices: np.ndarray, stages: RunStages, scene, detector: str |
                       lambda points, rows: filtering.silhouette_mask(points, scene, outside)))
         tests.append(("contours", contours_on and detector is not None,
                       lambda points, rows: contours.contour_mask(
-                          points, scene, detector, int(setting("contour_hull_cells")),
+                          points, contours.HullSurface(scene, int(setting("contour_hull_cells"))), detector,
                           float(setting("contour_max_cosine")), float(setting("contour_max_share")),
                           float(setting("contour_probe_cells")))))
     for name, active, test in tests:

@@ -12,9 +12,12 @@ import pytest
 
 from edgedog.builtin.writer import write_scene
 from edgedog.curve_files import EdgeCurves
+from edgedog.curves import contours
 from edgedog.curves.completion import ViewEvidence, complete_lines, pair_candidates, refine, samples_along
 from edgedog.curves.config import ExtractConfig
-from edgedog.curves.extract import scene_size
+from edgedog.curves.contours import HullSurface, scene_hull
+from edgedog.curves.extract import extract_primitives, scene_size
+from edgedog.primitives import EdgePrimitives
 from edgedog.scenes import load_scene
 from edgedog.synthetic.cameras import TARGET, orbit_cameras
 from edgedog.synthetic.features import sample_curve
@@ -85,7 +88,7 @@ def bracket(tmp_path_factory):
 
 def _complete(scene, curves: EdgeCurves, size: float) -> np.ndarray:
     config = ExtractConfig(completion_views=3, contour_hull_cells=64)
-    return complete_lines(curves, scene, "exact", size, config)
+    return complete_lines(curves, HullSurface(scene, config.contour_hull_cells), "exact", size, config)
 
 
 @pytest.mark.parametrize("kind", ["concave", "convex"])
@@ -113,3 +116,21 @@ def test_empty_edge_maps_add_nothing(bracket, monkeypatch):
     blank = np.zeros((scene.camera(0).height, scene.camera(0).width), np.float32)
     monkeypatch.setattr(scene, "load_edge_map", lambda index, detector=None: blank)
     assert _complete(scene, EdgeCurves(lines=every[1:]), size).shape == (0, 2, 3)
+
+
+def test_one_extraction_carves_the_hull_once(bracket, monkeypatch):
+    """The contour filter and the completion's contour test share the extraction's hull."""
+    part, scene, every, size = bracket
+    kept = [c for c in part.curves if c.dihedral != "concave"]
+    points = np.concatenate([sample_curve(c) for c in kept])
+    directions = np.concatenate([np.tile(c.b - c.a, (len(sample_curve(c)), 1)) for c in kept])
+    directions /= np.linalg.norm(directions, axis=1, keepdims=True)
+    count = len(points)
+    primitives = EdgePrimitives(points, directions, np.full(count, 3.0), np.ones(count), np.ones((count, 2)))
+    carved = []
+    monkeypatch.setattr(contours, "scene_hull", lambda *args: carved.append(args) or scene_hull(*args))
+    config = ExtractConfig(complete_lines=True, completion_views=3, contour_hull_cells=64,
+                           filter_projection=False, filter_silhouette=False, filter_outliers="off")
+    result = extract_primitives(primitives, config, scene, "exact")
+    assert result.counts["completed_lines"] >= 1 and "after_contours" in result.counts
+    assert len(carved) == 1

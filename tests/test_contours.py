@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from edgedog.curves.config import ExtractConfig
-from edgedog.curves.contours import contour_mask, grazing_shares, hull_normals, scene_hull
+from edgedog.curves.contours import HullSurface, contour_mask, grazing_shares
 from edgedog.curves.extract import filter_primitives
 from edgedog.diagnosis import RunStages, filter_losses
 from edgedog.primitives import EdgePrimitives
@@ -98,7 +98,7 @@ def test_rims_are_kept_and_contours_dropped(scene):
     rims = np.concatenate([rim(BOTTOM), rim(TOP)])
     contours = grazed_lines(scene)
     points = np.concatenate([rims, contours])
-    keep = contour_mask(points, scene, "test", CELLS, max_cosine=0.25, max_share=0.5)
+    keep = contour_mask(points, HullSurface(scene, CELLS), "test", max_cosine=0.25, max_share=0.5)
     assert keep[:len(rims)].mean() > 0.95
     assert keep[len(rims):].mean() < 0.2
 
@@ -106,21 +106,20 @@ def test_rims_are_kept_and_contours_dropped(scene):
 def test_the_hull_normal_is_the_side_and_the_top(scene):
     points = np.array([[TARGET[0] + RADIUS, TARGET[1], TARGET[2]], [TARGET[0], TARGET[1], TOP],
                        [TARGET[0] - RADIUS, TARGET[1], TARGET[2]]])
-    grid = scene_hull(scene, CELLS)
-    normals = hull_normals(grid, points)
+    normals = HullSurface(scene, CELLS).normals(points)
     assert normals.shape == (3, 1, 3)
     np.testing.assert_allclose(normals[:, 0], [[1, 0, 0], [0, 0, 1], [-1, 0, 0]], atol=0.15)
 
 
 def test_no_points_no_work(scene):
-    assert contour_mask(np.zeros((0, 3)), scene, "test", CELLS, 0.25, 0.5).shape == (0,)
+    assert contour_mask(np.zeros((0, 3)), HullSurface(scene, CELLS), "test", 0.25, 0.5).shape == (0,)
 
 
 def test_probes_around_a_rim_see_both_faces_and_on_the_side_one(scene):
-    grid = scene_hull(scene, CELLS)
+    surface = HullSurface(scene, CELLS)
     edge = np.array([[TARGET[0] + RADIUS, TARGET[1], TOP]])
     side = np.array([[TARGET[0] + RADIUS, TARGET[1], TARGET[2]]])
-    at_edge, on_side = hull_normals(grid, edge, probe=1.5)[0], hull_normals(grid, side, probe=1.5)[0]
+    at_edge, on_side = surface.normals(edge, probe=1.5)[0], surface.normals(side, probe=1.5)[0]
     assert at_edge.shape == on_side.shape == (7, 3)
     assert at_edge[:, 2].max() > 0.8 and at_edge[:, 0].max() > 0.8  # the top's normal and the side's
     assert on_side[:, 0].min() > 0.8
@@ -131,8 +130,9 @@ def test_probes_keep_rims_where_the_point_normal_alone_loses_them(scene):
     probes see the crease and keep them, while the side's contour lines still go."""
     rims = np.concatenate([rim(BOTTOM), rim(TOP)])
     points = np.concatenate([rims, grazed_lines(scene)])
-    alone = contour_mask(points, scene, "test", CELLS, max_cosine=0.25, max_share=0.2, probe=0.0)
-    probed = contour_mask(points, scene, "test", CELLS, max_cosine=0.25, max_share=0.2, probe=1.0)
+    surface = HullSurface(scene, CELLS)
+    alone = contour_mask(points, surface, "test", max_cosine=0.25, max_share=0.2, probe=0.0)
+    probed = contour_mask(points, surface, "test", max_cosine=0.25, max_share=0.2, probe=1.0)
     assert alone[:len(rims)].mean() < 0.5 and probed[:len(rims)].mean() > 0.95
     assert probed[len(rims):].mean() < 0.05
 
@@ -146,13 +146,13 @@ def test_undrawn_points_and_points_without_a_normal_are_not_judged(scene):
 def test_non_finite_and_far_points_are_not_judged(scene):
     points = np.array([[np.nan, 0.5, 0.5], [np.inf, 0.5, 0.5], [0.5, 0.5, -np.inf], [50.0, 50.0, 50.0]])
     with np.errstate(invalid="ignore"):
-        keep = contour_mask(points, scene, "test", CELLS, 0.25, 0.5, probe=1.0)
+        keep = contour_mask(points, HullSurface(scene, CELLS), "test", 0.25, 0.5, probe=1.0)
     assert keep.tolist() == [True, True, True, True]
 
 
 def test_a_scene_without_masks_is_not_filtered():
     scene = CylinderScene(views=8, masks=False)
-    assert contour_mask(rim(TOP), scene, "test", CELLS, 0.25, 0.5) is None
+    assert contour_mask(rim(TOP), HullSurface(scene, CELLS), "test", 0.25, 0.5) is None
 
 
 def test_filter_primitives_runs_it_last_and_counts_it(scene):
@@ -188,6 +188,6 @@ def test_the_diagnosis_names_the_filter_only_where_the_extraction_ran_it(scene):
     before = losses(others_off)
     assert set(before) == {"outliers"}
     ran = losses({**others_off, "filter_contours": True})
-    dropped = ~contour_mask(points, scene, "test", CELLS, 0.25, 0.5, probe=1.0)  # the defaults
+    dropped = ~contour_mask(points, HullSurface(scene, CELLS), "test", 0.25, 0.5, probe=1.0)  # the defaults
     assert dropped[len(rim(TOP)):].mean() > 0.5
     np.testing.assert_array_equal(ran == "contours", dropped)

@@ -34,9 +34,8 @@ from scipy.spatial import cKDTree
 
 from edgedog.curve_files import EdgeCurves
 from edgedog.curves.config import ExtractConfig
-from edgedog.curves.contours import DRAWN_VALUE, contour_mask
+from edgedog.curves.contours import DRAWN_VALUE, HullSurface, contour_mask
 from edgedog.hull import readable_mask
-from edgedog.scenes import Scene
 from edgedog.scenes.camera import Camera
 
 EXPLAINED_PIXELS = 4
@@ -271,11 +270,13 @@ def suppress(segments: np.ndarray, order: np.ndarray, radius: float) -> list[int
     return kept
 
 
-def complete_lines(curves: EdgeCurves, scene: Scene, detector: str, size: float,
+def complete_lines(curves: EdgeCurves, surface: HullSurface, detector: str, size: float,
                    config: ExtractConfig) -> np.ndarray:
     """(L, 2, 3) straight edges the `curves` miss (see the module's doc), with `config`'s
-    `completion_*` settings and its contour filter's hull; `size` is the scene size the relative
-    lengths refer to. Empty on a scene without masks or without curves."""
+    `completion_*` settings, on the scene of `surface`, whose visual hull the contour test uses;
+    `size` is the scene size the relative lengths refer to. Empty on a scene without masks or
+    without curves."""
+    scene = surface.scene
     min_views, cover = config.completion_views, config.completion_cover
     masks = [readable_mask(scene, i) for i in range(len(scene))]
     if any(mask is None for mask in masks) or curves.num_curves == 0 or size <= 0:
@@ -299,9 +300,9 @@ def complete_lines(curves: EdgeCurves, scene: Scene, detector: str, size: float,
             & (np.mean(distance > NOVELTY * size, axis=1) >= 0.5))
     candidates, count = candidates[keep], count[keep]
     if len(candidates):
-        not_contour = contour_mask(samples_along(candidates).reshape(-1, 3), scene, detector,
-                                   config.contour_hull_cells, config.contour_max_cosine,
-                                   config.completion_contour_share, config.contour_probe_cells)
+        not_contour = contour_mask(samples_along(candidates).reshape(-1, 3), surface, detector,
+                                   config.contour_max_cosine, config.completion_contour_share,
+                                   config.contour_probe_cells)
         if not_contour is not None:
             keep = not_contour.reshape(-1, SAMPLES).mean(axis=1) >= 0.5
             candidates, count = candidates[keep], count[keep]

@@ -122,14 +122,16 @@ def run_scene(run_dir: Path, maps: bool = True) -> tuple[Scene, str]:
 
 
 def filter_primitives(primitives: EdgePrimitives, config: ExtractConfig, scene: Scene | None,
-                      detector: str | None, counts: dict[str, int]) -> EdgePrimitives:
+                      detector: str | None, counts: dict[str, int],
+                      surface: contours.HullSurface | None = None) -> EdgePrimitives:
     """Apply the switched-on filters in order (opacity, projection, outliers, silhouette, contours),
     recording in `counts` how many primitives are left after each. A filter that does not run is
     not counted: the silhouette and contour filters on a scene without masks or without a scene
     (None), the outlier filter on 'auto' where the silhouette filter runs. The silhouette filter
     comes after the outliers: the outlier statistics are relative to the spread of all points, and
     without the points it removes they drop sparse real edges (half of 00000006's top hole
-    circle). The contour filter, last, also needs the edge maps (`detector`)."""
+    circle). The contour filter, last, also needs the edge maps (`detector`), and carves the
+    scene's visual hull unless given it (`surface`)."""
     counts["primitives"] = len(primitives)
     if config.filter_opacity:
         primitives = primitives.subset(filtering.opacity_mask(primitives.opacity, config.min_opacity))
@@ -157,9 +159,9 @@ def filter_primitives(primitives: EdgePrimitives, config: ExtractConfig, scene: 
         primitives = primitives.subset(inside)
         counts["after_silhouette"] = len(primitives)
     if config.filter_contours and scene is not None and detector is not None:
-        keep = contours.contour_mask(primitives.points, scene, detector, config.contour_hull_cells,
-                                     config.contour_max_cosine, config.contour_max_share,
-                                     config.contour_probe_cells)
+        surface = surface or contours.HullSurface(scene, config.contour_hull_cells)
+        keep = contours.contour_mask(primitives.points, surface, detector, config.contour_max_cosine,
+                                     config.contour_max_share, config.contour_probe_cells)
         if keep is not None:
             primitives = primitives.subset(keep)
             counts["after_contours"] = len(primitives)
@@ -187,12 +189,14 @@ def extract_primitives(primitives: EdgePrimitives, config: ExtractConfig = Extra
             the scene only).
     """
     counts: dict[str, int] = {}
-    points = filter_primitives(primitives, config, scene, detector, counts)
+    # Carved on first use, and then shared by the contour filter and the line completion.
+    surface = None if scene is None else contours.HullSurface(scene, config.contour_hull_cells)
+    points = filter_primitives(primitives, config, scene, detector, counts, surface)
     directions = edge_directions(points, config)
     curves, chains = extract_curves(points.points, directions, config)
     counts.update(chains=len(chains), lines=len(curves.lines), beziers=len(curves.beziers))
     if config.complete_lines and scene is not None and detector is not None:
-        added = completion.complete_lines(curves, scene, detector, scene_size(points.points), config)
+        added = completion.complete_lines(curves, surface, detector, scene_size(points.points), config)
         curves = EdgeCurves(lines=np.concatenate([curves.lines, added]), beziers=curves.beziers)
         counts["completed_lines"] = len(added)
     return RunExtraction(curves, points, directions, counts)
