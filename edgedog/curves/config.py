@@ -85,11 +85,12 @@ class ExtractConfig(Settings):
     """EdgeGaussians use 25 neighbours; an edge held by fewer primitives than that reaches across
     to other edges and is dropped whole, so 8 (docs/BENCHMARKS.md)."""
     outlier_std: Annotated[float, Range(0)] = 2.0
-    outlier_chains: bool = False
+    outlier_chains: bool = True
     """Spare the outliers on a chain (`filtering.chain_mask`): points linked within
     `chain_radius`, their directions and offsets agreeing within `link_angle`, spanning at least
     `chain_extent`: edges that training holds with few primitives. On the CAD benchmark's 42
-    `quick` runs F10 +0.3 (docs/RESULTS.md, "Sparing the outliers on chains")."""
+    `quick` runs F10 +0.3 (docs/RESULTS.md, "Sparing the outliers on chains"); False: every
+    outlier goes, as in the paper."""
     chain_radius: SceneLength = 0.02
     """Longest link of `outlier_chains`' chains (a fraction of the scene size, measured before the
     outlier filter over the points inside the silhouettes)."""
@@ -115,12 +116,13 @@ class ExtractConfig(Settings):
     too (0: the point's own normal): at an edge the hull creases, and no view grazes both faces."""
 
     # --- completion
-    complete_lines: bool = False
+    complete_lines: bool = True
     """Add the straight edges the curves miss, triangulated from the line segments the edge maps
     draw where no curve projects and refined on the views that draw them
     (`edgedog.curves.completion`): edges few views see, on which no primitive formed. Skipped on
     scenes without masks. On the CAD benchmark's 42 `quick` runs F10 +0.2, concave recall 54.5 ->
-    57.8 % (docs/RESULTS.md, "Completing straight edges from the maps")."""
+    57.8 % (docs/RESULTS.md, "Completing straight edges from the maps"); False: the curves are
+    the primitives' only, as in the paper."""
     completion_views: Annotated[int, Range(2, 1000)] = 5
     """A completed line is drawn, among the pixels no curve explains, by at least this many views."""
     completion_cover: Annotated[float, Range(0, 1, open_low=True)] = 0.75
