@@ -4,7 +4,7 @@ edge maps draw where no curve projects.
 An edge that only a few views can see (a concave corner behind walls) often gets no primitive:
 the views where it is hidden penalise one. The views that see it still draw it. Completion looks
 for what the maps draw and the curves do not explain. In each view, the drawn pixels farther than
-`EXPLAINED_PIXELS` from every curve's projection are thinned to one-pixel lines and cut into
+`completion_explained` pixels from every curve's projection are thinned to one-pixel lines and cut into
 straight segments. Two views' segments span two planes through their cameras; where the planes
 cut at a useful angle, their line, clipped to what both segments see, is a candidate. A
 candidate is refined to the line that best meets the planes of the ridges every supporting view
@@ -38,8 +38,6 @@ from edgedog.curves.contours import DRAWN_VALUE, HullSurface, contour_mask
 from edgedog.hull import readable_mask
 from edgedog.scenes.camera import Camera
 
-EXPLAINED_PIXELS = 4
-"""A drawn pixel this close to a curve's projection is that curve's."""
 MIN_SEGMENT_PIXELS = 20
 """Shortest 2D segment taken from a view."""
 MAX_SEGMENTS_PER_VIEW = 200
@@ -91,15 +89,16 @@ def _dilate(mask: np.ndarray, radius: int, shape: int = cv2.MORPH_RECT) -> np.nd
     return cv2.dilate(mask.astype(np.uint8), kernel).astype(bool)
 
 
-def view_evidence(camera: Camera, edge_map: np.ndarray, mask: np.ndarray,
-                  curve_points: np.ndarray) -> ViewEvidence:
-    """One view's evidence; `curve_points` (N, 3) sample the curves densely (a pixel or less)."""
+def view_evidence(camera: Camera, edge_map: np.ndarray, mask: np.ndarray, curve_points: np.ndarray,
+                  explained_pixels: int) -> ViewEvidence:
+    """One view's evidence; `curve_points` (N, 3) sample the curves densely (a pixel or less), and
+    a drawn pixel within `explained_pixels` of their projection is theirs."""
     hull = _dilate(mask, 3)
     drawn = (edge_map >= DRAWN_VALUE) & hull
     explained = np.zeros(drawn.shape, bool)
     pixels, inside = camera.pixels(curve_points)
     explained[pixels[inside, 1], pixels[inside, 0]] = True
-    unexplained = drawn & ~_dilate(explained, EXPLAINED_PIXELS, cv2.MORPH_ELLIPSE)
+    unexplained = drawn & ~_dilate(explained, explained_pixels, cv2.MORPH_ELLIPSE)
     lines = cv2.HoughLinesP(cv2.ximgproc.thinning(unexplained.astype(np.uint8) * 255), 1, np.pi / 360, 15,
                             minLineLength=MIN_SEGMENT_PIXELS, maxLineGap=3)
     segments = np.empty((0, 4)) if lines is None else lines.reshape(-1, 4).astype(np.float64)
@@ -282,8 +281,8 @@ def complete_lines(curves: EdgeCurves, surface: HullSurface, detector: str, size
     if any(mask is None for mask in masks) or curves.num_curves == 0 or size <= 0:
         return np.empty((0, 2, 3))
     existing = curves.sample(size / 1000)
-    views = [view_evidence(scene.camera(i), scene.load_edge_map(i, detector), masks[i], existing)
-             for i in range(len(scene))]
+    views = [view_evidence(scene.camera(i), scene.load_edge_map(i, detector), masks[i], existing,
+                           config.completion_explained) for i in range(len(scene))]
     candidates = all_candidates(views, np.asarray(scene.bounds, dtype=np.float64), MIN_OVERLAP * size)
     supported, outside = support(views, samples_along(candidates), False, cover)
     count = supported.sum(axis=1)

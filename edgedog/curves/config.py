@@ -125,6 +125,9 @@ class ExtractConfig(Settings):
     the primitives' only, as in the paper."""
     completion_views: Annotated[int, Range(2, 1000)] = 5
     """A completed line is drawn, among the pixels no curve explains, by at least this many views."""
+    completion_explained: Annotated[int, Range(1, 32)] = 4
+    """Pixels (of the edge maps): a drawn pixel this close to a curve's projection is that curve's,
+    and no completed line may rest on it."""
     completion_cover: Annotated[float, Range(0, 1, open_low=True)] = 0.75
     """A view draws a line where this share of its points lands on drawn pixels."""
     completion_spread: Annotated[float, Range(0, 180)] = 20.0
