@@ -119,7 +119,8 @@ def test_empty_edge_maps_add_nothing(bracket, monkeypatch):
 
 
 def test_one_extraction_carves_the_hull_once(bracket, monkeypatch):
-    """The contour filter and the completion's contour test share the extraction's hull."""
+    """The contour filter and the completion's contour test share the extraction's hull, and the
+    completion reads the masks the hull was carved from."""
     part, scene, every, size = bracket
     kept = [c for c in part.curves if c.dihedral != "concave"]
     points = np.concatenate([sample_curve(c) for c in kept])
@@ -127,10 +128,12 @@ def test_one_extraction_carves_the_hull_once(bracket, monkeypatch):
     directions /= np.linalg.norm(directions, axis=1, keepdims=True)
     count = len(points)
     primitives = EdgePrimitives(points, directions, np.full(count, 3.0), np.ones(count), np.ones((count, 2)))
-    carved = []
+    carved, read, load_mask = [], [], scene.load_mask
     monkeypatch.setattr(contours, "scene_hull", lambda *args: carved.append(args) or scene_hull(*args))
+    monkeypatch.setattr(scene, "load_mask", lambda index: read.append(index) or load_mask(index))
     config = ExtractConfig(complete_lines=True, completion_views=3, contour_hull_cells=64,
                            filter_projection=False, filter_silhouette=False, filter_outliers="off")
     result = extract_primitives(primitives, config, scene, "exact")
     assert result.counts["completed_lines"] >= 1 and "after_contours" in result.counts
     assert len(carved) == 1
+    assert len(read) == len(scene)  # each view's mask read once

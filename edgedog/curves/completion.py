@@ -35,7 +35,6 @@ from scipy.spatial import cKDTree
 from edgedog.curve_files import EdgeCurves
 from edgedog.curves.config import ExtractConfig
 from edgedog.curves.contours import DRAWN_VALUE, HullSurface, contour_mask
-from edgedog.hull import readable_mask
 from edgedog.scenes.camera import Camera
 
 MIN_SEGMENT_PIXELS = 20
@@ -277,7 +276,7 @@ def complete_lines(curves: EdgeCurves, surface: HullSurface, detector: str, size
     without curves."""
     scene = surface.scene
     min_views, cover = config.completion_views, config.completion_cover
-    masks = [readable_mask(scene, i) for i in range(len(scene))]
+    masks = surface.masks
     if any(mask is None for mask in masks) or curves.num_curves == 0 or size <= 0:
         return np.empty((0, 2, 3))
     existing = curves.sample(size / 1000)

@@ -30,12 +30,11 @@ COARSE_CELLS = 64
 """Cells per side of the first hull, over the scene's bounds, which finds the object's box."""
 
 
-def scene_hull(scene: Scene, cells: int) -> HullGrid | None:
-    """The visual hull of the scene's masks on a `cells`^3 grid over the cube around the object:
-    a first hull over the cube around the scene's bounds finds the object's box, one coarse cell
-    wider on each side. None when no view has a readable mask. It depends on the scene only, so
-    the diagnosis can re-apply the filter point by point."""
-    masks = [readable_mask(scene, i) for i in range(len(scene))]
+def scene_hull(scene: Scene, masks: list[np.ndarray | None], cells: int) -> HullGrid | None:
+    """The visual hull of the scene's `masks` (each view's `readable_mask`) on a `cells`^3 grid
+    over the cube around the object: a first hull over the cube around the scene's bounds finds
+    the object's box, one coarse cell wider on each side. None when no view has a readable mask.
+    It depends on the scene only, so the diagnosis can re-apply the filter point by point."""
     if all(mask is None for mask in masks):
         return None
     low, high = np.asarray(scene.bounds, dtype=np.float64)
@@ -63,17 +62,23 @@ def signed_distance(grid: HullGrid) -> np.ndarray:
 
 
 class HullSurface:
-    """A scene's visual hull (`scene_hull` at `cells` per side) and its signed distance, carved on
-    first use and then kept: one extraction's contour tests (the filter's and the line
-    completion's) share it instead of carving it each (seconds on a 50-view scene)."""
+    """A scene's masks, its visual hull (`scene_hull` at `cells` per side) and its signed
+    distance, each read or carved on first use and then kept: one extraction's contour tests (the
+    filter's and the line completion's) and the completion's views share them instead of reading
+    and carving them each (seconds on a 50-view scene)."""
 
     def __init__(self, scene: Scene, cells: int):
         self.scene, self.cells = scene, cells
 
     @cached_property
+    def masks(self) -> list[np.ndarray | None]:
+        """Each view's (H, W) bool mask (`readable_mask`), None where it has none."""
+        return [readable_mask(self.scene, i) for i in range(len(self.scene))]
+
+    @cached_property
     def grid(self) -> HullGrid | None:
         """The hull's grid; None when no view has a readable mask."""
-        return scene_hull(self.scene, self.cells)
+        return scene_hull(self.scene, self.masks, self.cells)
 
     @cached_property
     def signed(self) -> np.ndarray:
