@@ -19,7 +19,8 @@ half of its points have a primitive centre of primitives.ply within NEAR; with w
 Fisher pruning, the only one a run's checkpoint records, removed primitives on it), dropped at
 extraction (under half have a point of edge_points.ply within NEAR: the filter that removed most
 of the primitives near it, re-applied), or dropped at curve fitting (edge points near it, no
-curve).
+curve; "or by the shading test" where the run's extraction dropped curves by their shading,
+`extract.filter_shading`, which acts on the fitted curves).
 
 A predicted curve is false where under half of its samples lie within NEAR of the ground truth:
 an outlier (off the part's surface), the contour of a curved face (on a curved surface), or on a
@@ -651,7 +652,9 @@ def _cause(report: CurveReport, stages: RunStages | None) -> str:
                 f"{report.primitive_mm} mm); {pruned}")
     if not report.edge_point_cover or report.edge_point_cover < MISSED_RECALL:
         return "extraction"  # the filter is named once all curves' primitives are re-filtered
-    return f"dropped at curve fitting (edge points within 10 mm of {report.edge_point_cover:.0f}% of it)"
+    shading = " or by the shading test" if stages.extract_config.get("filter_shading") else ""
+    return (f"dropped at curve fitting{shading} (edge points within 10 mm of {report.edge_point_cover:.0f}% "
+            "of it)")
 
 
 def _name_filters(reports: list[CurveReport], gt_points: np.ndarray, owner: np.ndarray, stages: RunStages,

@@ -487,15 +487,16 @@ def test_extract_run_with_nothing_left_writes_empty_files(tmp_path):
 def test_the_silhouette_filter_alone_needs_no_edge_maps(builtin_scene_dir, tmp_path):
     points, tangents = segment([0.4, 0.4, 0.2], [0.6, 0.4, 0.2], 0.002)
     write_primitives(tmp_path / "primitives.ply", points, tangents, 0.6)
-    # maps of an unknown detector: only the projection and contour filters and the line
-    # completion would ask for them
+    # maps of an unknown detector: only the projection and contour filters, the shading test and
+    # the line completion would ask for them
     log = {"scene": str(builtin_scene_dir), "detector": "no-such-maps"}
     (tmp_path / "log.json").write_text(json.dumps(log))
     without_maps = ExtractConfig(filter_projection=False, filter_contours=False, complete_lines=False)
     result = extract_run(tmp_path, without_maps)
     assert "after_silhouette" in result.counts
     for needs_maps in (ExtractConfig(), ExtractConfig(filter_projection=False),
-                       dataclasses.replace(without_maps, complete_lines=True)):
+                       dataclasses.replace(without_maps, complete_lines=True),
+                       dataclasses.replace(without_maps, filter_shading=True)):
         with pytest.raises(ConfigError, match="no-such-maps"):
             extract_run(tmp_path, needs_maps)
 

@@ -115,6 +115,24 @@ class ExtractConfig(Settings):
     """A view grazes a point only where it grazes the hull's normals this many cells around it
     too (0: the point's own normal): at an edge the hull creases, and no view grazes both faces."""
 
+    filter_shading: bool = False
+    """Drop the fitted curves that some of the views drawing them see at grazing incidence on
+    the visual hull (`shading_grazing`, below the contour filter's own limit) and whose two
+    sides' grey values change between those views (`edgedog.curves.shading`): occluding contours
+    of curved faces that the contour filter leaves. Needs renders or photos of a matte object
+    under a fixed light; skipped on scenes without masks."""
+    shading_grazing: Share = 0.2
+    """Only curves whose points this share of the drawing views see at grazing incidence (on
+    average; the contour filter's test, `contour_max_cosine`, `contour_probe_cells`) are judged
+    by their shading: an outline whose far side is the part itself also changes its grey values
+    between views, but no view grazes it."""
+    shading_min_share: Share = 0.4
+    """Keep a curve when on each of its sides at least this share of the views that draw it show
+    the same grey value (within `shading_tolerance`)."""
+    shading_tolerance: Share = 0.02
+    """Largest difference of a side's grey value (0 to 1) from its median over the views that
+    still counts as the same face."""
+
     # --- completion
     complete_lines: bool = True
     """Add the straight edges the curves miss, triangulated from the line segments the edge maps

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from edgedog.curve_files import EdgeCurves, write_edges
-from edgedog.curves import completion, contours, filtering, fitting, grouping, junctions, topology
+from edgedog.curves import completion, contours, filtering, fitting, grouping, junctions, shading, topology
 from edgedog.curves.config import ExtractConfig
 from edgedog.errors import InputError
 from edgedog.files import read_json
@@ -193,10 +193,20 @@ def extract_primitives(primitives: EdgePrimitives, config: ExtractConfig = Extra
     surface = None if scene is None else contours.HullSurface(scene, config.contour_hull_cells)
     points = filter_primitives(primitives, config, scene, detector, counts, surface)
     directions = edge_directions(points, config)
-    curves, chains = extract_curves(points.points, directions, config)
-    counts.update(chains=len(chains), lines=len(curves.lines), beziers=len(curves.beziers))
+    fitted, chains = extract_curves(points.points, directions, config)
+    counts.update(chains=len(chains), lines=len(fitted.lines), beziers=len(fitted.beziers))
+    curves = fitted
+    if config.filter_shading and scene is not None and detector is not None and all(
+            mask is not None for mask in surface.masks):
+        shares = shading.shading_shares(fitted, scene, detector, surface.masks, config.shading_tolerance)
+        grazed = shading.grazed_curves(fitted, surface, detector, config.contour_max_cosine,
+                                       config.contour_probe_cells, config.shading_grazing)
+        judged = np.where(grazed, shares, np.nan)
+        curves = shading.without_inconsistent(fitted, judged, config.shading_min_share)
+        counts["shading_dropped"] = fitted.num_curves - curves.num_curves
     if config.complete_lines and scene is not None and detector is not None:
-        added = completion.complete_lines(curves, surface, detector, scene_size(points.points), config)
+        # What the maps draw along the curves the shading test dropped (contours) stays explained.
+        added = completion.complete_lines(fitted, surface, detector, scene_size(points.points), config)
         curves = EdgeCurves(lines=np.concatenate([curves.lines, added]), beziers=curves.beziers)
         counts["completed_lines"] = len(added)
     return RunExtraction(curves, points, directions, counts)
@@ -219,7 +229,8 @@ def extract_run(run_dir: str | Path, config: ExtractConfig = ExtractConfig(), sc
     primitives = EdgePrimitives.from_arrays(read_ply(run_dir / "primitives.ply"))
     if layers is not None:
         primitives = primitives.in_layers(layers)
-    with_maps = config.filter_projection or config.filter_contours or config.complete_lines
+    with_maps = (config.filter_projection or config.filter_contours or config.complete_lines
+                 or config.filter_shading)
     if (with_maps or config.filter_silhouette) and (scene is None or detector is None):
         scene, detector = run_scene(run_dir, maps=with_maps)
     result = extract_primitives(primitives, config, scene, detector)
