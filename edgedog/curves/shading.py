@@ -29,8 +29,8 @@ light reaches keeps one grey value whatever its normal, so contours there are no
 an outline whose far side is the part itself (walls seen behind walls) or whose face some views
 see at grazing incidence (a strip narrower than `SIDE_PIXELS`) also changes from view to view,
 which is why only the suspects are judged. Under ABC-NEF's soft light a curved face's grey value
-changes little with its normal (by at most about 0.05 over all directions around a vertical
-cylinder), so what the test catches of a contour is mostly its far side, the part behind it.
+changes little with its normal (0.11 from darkest to brightest around a vertical cylinder, at
+most 0.05 between directions 30 degrees apart), so what the test catches of a contour is mostly its far side, the part behind it.
 Scenes without masks are not judged.
 """
 
