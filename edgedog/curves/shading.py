@@ -30,8 +30,8 @@ an outline whose far side is the part itself (walls seen behind walls) or whose 
 see at grazing incidence (a strip narrower than `SIDE_PIXELS`) also changes from view to view,
 which is why only the suspects are judged. Under ABC-NEF's soft light a curved face's grey value
 changes little with its normal (0.11 from darkest to brightest around a vertical cylinder, at
-most 0.05 between directions 30 degrees apart), so what the test catches of a contour is mostly its far side, the part behind it.
-Scenes without masks are not judged.
+most 0.05 between directions 30 degrees apart), so what the test catches of a contour is mostly
+its far side, the part behind it. Scenes without masks are not judged.
 """
 
 from __future__ import annotations
@@ -159,7 +159,7 @@ def shading_shares(curves: EdgeCurves, scene: Scene, detector: str, masks: list[
                    tolerance: float) -> np.ndarray:
     """(C,) for each curve (lines, then Béziers, then polylines), the lower of its two sides'
     `consistent_share` over the views that draw it (at most `MAX_VIEWS` of the scene's);
-    NaN where no side is seen by `MIN_SIDE_VIEWS` views at any of its points.
+    NaN where no piece of either side is seen by `MIN_SIDE_VIEWS` views.
     `masks`: each view's (H, W) bool object mask."""
     chains = [resampled(chain) for chain in curve_polylines(curves)]
     views = judged_views(len(scene)) if chains else np.zeros(0, np.int64)
