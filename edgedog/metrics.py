@@ -57,6 +57,14 @@ def sample_count(lengths: np.ndarray, spacing: float = SAMPLE_SPACING) -> float:
     return float(np.sum(np.floor(np.asarray(lengths, dtype=np.float64) / spacing)))
 
 
+def points_along(points: np.ndarray, fractions: np.ndarray) -> np.ndarray:
+    """(n, 3) the points of a polyline (M, 3) at `fractions` (n,) of its arc length (0: its first
+    vertex, 1: its last)."""
+    lengths = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))]
+    at = np.asarray(fractions, dtype=np.float64) * lengths[-1]
+    return np.stack([np.interp(at, lengths, points[:, k]) for k in range(3)], axis=1)
+
+
 def sample_polyline(points: np.ndarray, spacing: float = SAMPLE_SPACING) -> np.ndarray:
     """Sample a polyline (M, 3) uniformly in arc length; returns (n, 3).
 

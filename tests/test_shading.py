@@ -15,6 +15,7 @@ from edgedog.curves.config import ExtractConfig
 from edgedog.curves.contours import HullSurface
 from edgedog.curves.shading import (
     consistent_share,
+    curve_samples,
     grazed_curves,
     shading_shares,
     side_offsets,
@@ -138,7 +139,7 @@ def equator_contours(scene: ShadedCylinder) -> list[np.ndarray]:
 def test_rims_keep_their_shading_and_contours_do_not(scene):
     contours = equator_contours(scene)
     curves = EdgeCurves(lines=np.stack(contours), polylines=[rim(BOTTOM), rim(TOP)])
-    shares = shading_shares(curves, scene, "test", scene.masks, tolerance=0.02)
+    shares = shading_shares(curve_samples(curves), scene, "test", scene.masks, tolerance=0.02)
     contour_shares, rim_shares = shares[:len(contours)], shares[len(contours):]
     assert np.all(rim_shares >= 0.7), rim_shares
     judged = contour_shares[np.isfinite(contour_shares)]
@@ -154,8 +155,8 @@ def test_only_curves_seen_grazing_on_the_hull_are_judged(scene):
     contours = equator_contours(scene)
     curves = EdgeCurves(lines=np.stack(contours), polylines=[rim(BOTTOM), rim(TOP)])
     config = ExtractConfig()
-    grazed = grazed_curves(curves, HullSurface(scene, 64), "test", config.contour_max_cosine,
-                           config.contour_probe_cells, config.shading_grazing)
+    grazed = grazed_curves(curve_samples(curves), HullSurface(scene, 64), "test",
+                           config.contour_max_cosine, config.contour_probe_cells, config.shading_grazing)
     assert grazed[:len(contours)].mean() > 0.8 and not grazed[len(contours):].any()
 
 
@@ -174,8 +175,9 @@ def test_a_face_lies_on_the_same_side_in_every_view():
 
 def test_curves_no_view_draws_are_not_judged(scene):
     far = np.array([[[5.0, 5.0, 5.0], [5.2, 5.0, 5.0]]])  # outside every image
-    assert np.isnan(shading_shares(EdgeCurves(lines=far), scene, "test", scene.masks, 0.02)).all()
-    assert shading_shares(EdgeCurves(), scene, "test", scene.masks, 0.02).shape == (0,)
+    far_samples = curve_samples(EdgeCurves(lines=far))
+    assert np.isnan(shading_shares(far_samples, scene, "test", scene.masks, 0.02)).all()
+    assert shading_shares(curve_samples(EdgeCurves()), scene, "test", scene.masks, 0.02).shape == (0,)
 
 
 def test_consistent_share_compares_each_piece_over_the_views():

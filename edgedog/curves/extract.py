@@ -198,11 +198,13 @@ def extract_primitives(primitives: EdgePrimitives, config: ExtractConfig = Extra
     curves = fitted
     if config.filter_shading and scene is not None and detector is not None and all(
             mask is not None for mask in surface.masks):
-        shares = shading.shading_shares(fitted, scene, detector, surface.masks, config.shading_tolerance)
-        grazed = shading.grazed_curves(fitted, surface, detector, config.contour_max_cosine,
+        samples = shading.curve_samples(fitted)
+        grazed = shading.grazed_curves(samples, surface, detector, config.contour_max_cosine,
                                        config.contour_probe_cells, config.shading_grazing)
-        judged = np.where(grazed, shares, np.nan)
-        curves = shading.without_inconsistent(fitted, judged, config.shading_min_share)
+        shares = np.full(len(samples), np.nan)  # only the suspects are judged: the others are kept
+        shares[grazed] = shading.shading_shares(samples[grazed], scene, detector, surface.masks,
+                                                config.shading_tolerance)
+        curves = shading.without_inconsistent(fitted, shares, config.shading_min_share)
         counts["shading_dropped"] = fitted.num_curves - curves.num_curves
     if config.complete_lines and scene is not None and detector is not None:
         # What the maps draw along the curves the shading test dropped (contours) stays explained.

@@ -41,6 +41,7 @@ from scipy.ndimage import map_coordinates
 
 from edgedog.curve_files import EdgeCurves, curve_polylines
 from edgedog.curves.contours import DRAWN_VALUE, HullSurface, grazing_shares, window_max
+from edgedog.metrics import points_along
 from edgedog.scenes import Scene
 from edgedog.scenes.camera import Camera
 
@@ -64,11 +65,12 @@ MAX_VIEWS = 256
 """Views read at most (evenly spread): the values held grow with curves x views."""
 
 
-def resampled(chain: np.ndarray, count: int = SAMPLES) -> np.ndarray:
-    """(count, 3) points evenly spaced by arc length along a vertex chain (M, 3), ends included."""
-    lengths = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(chain, axis=0), axis=1))]
-    at = np.linspace(0.0, lengths[-1], count)
-    return np.stack([np.interp(at, lengths, chain[:, k]) for k in range(3)], axis=1)
+def curve_samples(curves: EdgeCurves) -> np.ndarray:
+    """(C, SAMPLES, 3) points evenly spaced by arc length along each curve (lines, then Béziers,
+    then polylines), ends included: where both tests read the curve."""
+    fractions = np.linspace(0.0, 1.0, SAMPLES)
+    chains = [points_along(chain, fractions) for chain in curve_polylines(curves)]
+    return np.array(chains, dtype=np.float64).reshape(-1, SAMPLES, 3)
 
 
 def side_offsets(camera: Camera, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -137,42 +139,39 @@ def consistent_share(values: np.ndarray, tolerance: float) -> float:
 
 def judged_views(count: int) -> np.ndarray:
     """Indices of at most `MAX_VIEWS` views, evenly spread over the `count` views."""
-    return np.unique(np.linspace(0, count - 1, min(count, MAX_VIEWS)).round().astype(np.int64)) if count \
-        else np.zeros(0, np.int64)
+    return np.unique(np.linspace(0, count - 1, min(count, MAX_VIEWS)).round().astype(np.int64))
 
 
-def grazed_curves(curves: EdgeCurves, surface: HullSurface, detector: str, max_cosine: float,
+def grazed_curves(samples: np.ndarray, surface: HullSurface, detector: str, max_cosine: float,
                   probe: float, min_share: float) -> np.ndarray:
-    """(C,) bool, the curves (lines, then Béziers, then polylines) whose points at least
-    `min_share` of the views drawing them see, on average, at grazing incidence on the visual hull
-    of `surface` (`contours.grazing_shares`, with the contour filter's `max_cosine` and `probe`);
-    all False on a scene without masks."""
-    chains = [resampled(chain) for chain in curve_polylines(curves)]
-    if not chains or surface.grid is None:
-        return np.zeros(len(chains), bool)
-    points = np.concatenate(chains)
+    """(C,) bool, the curves of `samples` (C, SAMPLES, 3) whose points at least `min_share` of the
+    views drawing them see, on average, at grazing incidence on the visual hull of `surface`
+    (`contours.grazing_shares`, with the contour filter's `max_cosine` and `probe`); all False
+    on a scene without masks."""
+    if not len(samples) or surface.grid is None:
+        return np.zeros(len(samples), bool)
+    points = samples.reshape(-1, 3)
     shares = grazing_shares(points, surface.normals(points, probe), surface.scene, detector, max_cosine)
-    return shares.reshape(len(chains), SAMPLES).mean(axis=1) >= min_share
+    return shares.reshape(len(samples), SAMPLES).mean(axis=1) >= min_share
 
 
-def shading_shares(curves: EdgeCurves, scene: Scene, detector: str, masks: list[np.ndarray],
+def shading_shares(samples: np.ndarray, scene: Scene, detector: str, masks: list[np.ndarray],
                    tolerance: float) -> np.ndarray:
-    """(C,) for each curve (lines, then Béziers, then polylines), the lower of its two sides'
+    """(C,) for each curve of `samples` (C, SAMPLES, 3), the lower of its two sides'
     `consistent_share` over the views that draw it (at most `MAX_VIEWS` of the scene's);
-    NaN where no piece of either side is seen by `MIN_SIDE_VIEWS` views.
-    `masks`: each view's (H, W) bool object mask."""
-    chains = [resampled(chain) for chain in curve_polylines(curves)]
-    views = judged_views(len(scene)) if chains else np.zeros(0, np.int64)
-    sides = np.full((len(chains), len(views), SAMPLES, 2), np.nan)
+    NaN where no piece of either side is seen by `MIN_SIDE_VIEWS` views. No view is read
+    without curves. `masks`: each view's (H, W) bool object mask."""
+    views = judged_views(len(scene)) if len(samples) else np.zeros(0, np.int64)
+    sides = np.full((len(samples), len(views), SAMPLES, 2), np.nan)
     for row, view in enumerate(views):
         camera, grey = scene.camera(view), scene.load_image(view).mean(axis=2)
         drawn = window_max(scene.load_edge_map(view, detector)) >= DRAWN_VALUE
-        for c, points in enumerate(chains):
+        for c, points in enumerate(samples):
             sides[c, row] = view_sides(camera, grey, drawn, masks[view], points)
-    shares = np.array([np.fmin(consistent_share(piece_values(sides[c, :, :, 0]), tolerance),
-                               consistent_share(piece_values(sides[c, :, :, 1]), tolerance))
-                       for c in range(len(chains))])
-    return shares.reshape(len(chains))
+    shares = [np.fmin(consistent_share(piece_values(sides[c, :, :, 0]), tolerance),
+                      consistent_share(piece_values(sides[c, :, :, 1]), tolerance))
+              for c in range(len(samples))]
+    return np.array(shares, dtype=np.float64).reshape(len(samples))
 
 
 def without_inconsistent(curves: EdgeCurves, shares: np.ndarray, min_share: float) -> EdgeCurves:

@@ -16,6 +16,7 @@ import numpy as np
 
 from edgedog.errors import InputError
 from edgedog.groundtruth import GT_SPACING
+from edgedog.metrics import points_along
 
 DIHEDRALS = ("convex", "concave", "unknown")
 """Sign of the dihedral angle at an edge: the material's wedge is under 180 degrees (convex) or
@@ -112,9 +113,7 @@ class Traced:
 
     def at(self, t: np.ndarray) -> np.ndarray:
         """(n,) parameters in [0, 1] -> (n, 3) points, t proportional to the arc length."""
-        lengths = self._lengths()
-        s = np.asarray(t, float) * lengths[-1]
-        return np.stack([np.interp(s, lengths, self.points[:, k]) for k in range(3)], axis=1)
+        return points_along(self.points, t)
 
     def to_json(self) -> dict:
         return {"type": self.kind, "dihedral": self.dihedral, "points": self.points.tolist()}
