@@ -120,7 +120,9 @@ class ExtractConfig(Settings):
     the visual hull (`shading_grazing`, below the contour filter's own limit) and whose two
     sides' grey values change between those views (`edgedog.curves.shading`): occluding contours
     of curved faces that the contour filter leaves. Needs renders or photos of a matte object
-    under a fixed light; skipped on scenes without masks."""
+    under a fixed light; skipped on scenes without masks. Off: on the 42 CAD designs at `quick`
+    F10 +0.73 ± 0.43 (22 better, 6 worse, the cup -10.8), on ABC 00000006 -1.05 ± 0.43 over
+    three seeds (arcs beside its chamfer go; docs/notes/2026-12-02-shading-on-the-suite.md)."""
     shading_grazing: Share = 0.2
     """Only curves whose points this share of the drawing views see at grazing incidence (on
     average; the contour filter's test, `contour_max_cosine`, `contour_probe_cells`) are judged
