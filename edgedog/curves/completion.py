@@ -277,7 +277,7 @@ def complete_lines(curves: EdgeCurves, surface: HullSurface, detector: str, size
     scene = surface.scene
     min_views, cover = config.completion_views, config.completion_cover
     masks = surface.masks
-    if any(mask is None for mask in masks) or curves.num_curves == 0 or size <= 0:
+    if not surface.every_view_masked or curves.num_curves == 0 or size <= 0:
         return np.empty((0, 2, 3))
     existing = curves.sample(size / 1000)
     views = [view_evidence(scene.camera(i), scene.load_edge_map(i, detector), masks[i], existing,

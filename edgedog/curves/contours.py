@@ -75,6 +75,12 @@ class HullSurface:
         """Each view's (H, W) bool mask (`readable_mask`), None where it has none."""
         return [readable_mask(self.scene, i) for i in range(len(self.scene))]
 
+    @property
+    def every_view_masked(self) -> bool:
+        """Whether every view has a readable mask (what the shading test and the line completion
+        need: a view without one cannot tell the object from the background)."""
+        return all(mask is not None for mask in self.masks)
+
     @cached_property
     def grid(self) -> HullGrid | None:
         """The hull's grid; None when no view has a readable mask."""

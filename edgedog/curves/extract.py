@@ -196,8 +196,7 @@ def extract_primitives(primitives: EdgePrimitives, config: ExtractConfig = Extra
     fitted, chains = extract_curves(points.points, directions, config)
     counts.update(chains=len(chains), lines=len(fitted.lines), beziers=len(fitted.beziers))
     curves = fitted
-    if config.filter_shading and scene is not None and detector is not None and all(
-            mask is not None for mask in surface.masks):
+    if config.filter_shading and scene is not None and detector is not None and surface.every_view_masked:
         samples = shading.curve_samples(fitted)
         grazed = shading.grazed_curves(samples, surface, detector, config.contour_max_cosine,
                                        config.contour_probe_cells, config.shading_grazing)
