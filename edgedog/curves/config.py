@@ -110,7 +110,9 @@ class ExtractConfig(Settings):
     Stricter shares remove more contours and, on the shared ABC objects, some true edges: 0.3
     with `contour_probe_cells` 1.5 gains 2.3 F10 on the CAD designs, loses up to 0.9 on 00004926."""
     contour_hull_cells: Annotated[int, Range(16, MAX_HULL_CELLS)] = 128
-    """Cells per side of the visual hull's grid over the object's box."""
+    """Cells per side of the visual hull's grid over the object's box. 192 (5.6 mm cells on the
+    CAD designs) moves the 42 CAD designs' F10 by +0.10 ± 0.18 and costs 00000006 1.1 over three
+    seeds (docs/notes/2026-12-02-hull-vote-today.md)."""
     contour_probe_cells: Annotated[float, Range(0, 8)] = 1.0
     """A view grazes a point only where it grazes the hull's normals this many cells around it
     too (0: the point's own normal): at an edge the hull creases, and no view grazes both faces."""
