@@ -65,6 +65,8 @@ def widened(mask: np.ndarray) -> np.ndarray:
 
 FIRST_BLOCKS = 8
 """Blocks per side of the coarsest level of `carve` (each a power of two cells)."""
+NO_BLOCKS = np.zeros((0, 3), np.int64)
+"""An empty (0, 3) list of blocks' first cells."""
 CHILD_OFFSETS = np.array(list(np.ndindex(2, 2, 2)), np.int64)
 """(8, 3) a block's children's first cells, in halves of its side."""
 ROUNDING_PX = 1.5
@@ -89,9 +91,10 @@ class _ViewClearance:
     def of(cls, camera: Camera, mask: np.ndarray) -> _ViewClearance:
         held = widened(mask)
         ring = np.pad(held, 1, constant_values=True).astype(np.uint8)
-        to_carving = cv2.distanceTransform(ring, cv2.DIST_C, 3)
         if ring.all():  # no pixel carves: every distance is unbounded
             to_carving = np.full(ring.shape, np.inf, np.float32)
+        else:
+            to_carving = cv2.distanceTransform(ring, cv2.DIST_C, 3)
         to_holding = cv2.distanceTransform(1 - ring, cv2.DIST_C, 3)
         return cls(camera, held, to_carving, to_holding)
 
@@ -109,16 +112,14 @@ class _ViewClearance:
         (`held_centres` holds every cell). A block neither carved nor held straddles the mask's
         border, or the camera's plane."""
         camera = self.camera
-        local = centres @ camera.R.T + camera.t
-        depth = local[:, 2]
+        uv, depth = camera.project(centres)
         in_front = depth - radii > 0
-        safe = np.where(in_front, depth, 1.0)
-        # A point within r of (X, Y, Z) lands within |K| r (Z + |(X, Y)|) / (Z (Z - r)) pixels of
-        # its image, and each pixel is a rounded projection.
-        gain = np.linalg.norm(camera.K[:2, :2], 2)
-        footprint = gain * radii * (safe + np.hypot(local[:, 0], local[:, 1])) / (
-            safe * np.maximum(safe - radii, 1e-12)) + ROUNDING_PX
-        uv = (local[:, :2] / safe[:, None]) @ camera.K[:2, :2].T + camera.K[:2, 2]
+        # A point within r of a centre at depth Z and normalised image position n lands within
+        # |K| r (1 + |n|) / (Z - r) pixels of the centre's image, and each pixel is a rounded
+        # projection.
+        normalised = (uv - camera.K[:2, 2]) @ np.linalg.inv(camera.K[:2, :2]).T
+        footprint = np.linalg.norm(camera.K[:2, :2], 2) * radii * (1 + np.linalg.norm(normalised, axis=1)) / (
+            np.maximum(depth - radii, 1e-12)) + ROUNDING_PX
         uv = np.where(in_front[:, None], uv, 0.0)
         height, width = self.to_carving.shape
         far = 2.0 * max(width, height)  # off the image either way; keeps the cast to int in range
@@ -139,7 +140,7 @@ class _ViewClearance:
         split into its eight children (those on the grid), single cells are tested by centre."""
         blocks, kept, size = dict(blocks), {}, max(blocks)
         while size >= 1:
-            starts = blocks.pop(size, np.zeros((0, 3), np.int64))
+            starts = blocks.pop(size, NO_BLOCKS)
             extent = np.minimum(size, resolution - starts)  # cells of each block, clipped to the grid
             centres = origin + (starts + extent / 2) * cell
             if size == 1:
@@ -148,7 +149,7 @@ class _ViewClearance:
                 carved, held = self.judge_blocks(centres, np.linalg.norm(extent - 1, axis=1) * cell / 2)
                 kept[size] = starts[held]
                 children = (starts[~carved & ~held, None, :] + size // 2 * CHILD_OFFSETS[None]).reshape(-1, 3)
-                blocks[size // 2] = np.concatenate([blocks.get(size // 2, np.zeros((0, 3), np.int64)),
+                blocks[size // 2] = np.concatenate([blocks.get(size // 2, NO_BLOCKS),
                                                     children[(children < resolution).all(axis=1)]])
             size //= 2
         return kept
@@ -176,7 +177,7 @@ def carve(cameras: list[Camera], masks: list[np.ndarray | None], center: np.ndar
         if mask is not None:
             blocks = _ViewClearance.of(camera, mask).refine(blocks, origin, cell, resolution)
     occupied = np.zeros((resolution,) * 3, bool)
-    occupied[tuple(blocks.pop(1, np.zeros((0, 3), np.int64)).T)] = True
+    occupied[tuple(blocks.pop(1, NO_BLOCKS).T)] = True
     for size, starts in blocks.items():
         for x, y, z in starts:
             occupied[x:x + size, y:y + size, z:z + size] = True
