@@ -80,6 +80,14 @@ class EdgeCurves:
         parts.append(self.points)
         return np.concatenate(parts, axis=0)
 
+    def kept(self, keep: np.ndarray) -> EdgeCurves:
+        """The curves where `keep` (num_curves,) bool holds, in the order lines, Béziers,
+        polylines (that of `curve_polylines`); the free points stay."""
+        lines, beziers = len(self.lines), len(self.beziers)
+        return EdgeCurves(lines=self.lines[keep[:lines]], beziers=self.beziers[keep[lines:lines + beziers]],
+                          polylines=[p for p, k in zip(self.polylines, keep[lines + beziers:]) if k],
+                          points=self.points)
+
     def transformed(self, T: np.ndarray) -> EdgeCurves:
         """A copy with the homogeneous transform T (4, 4) applied to every coordinate.
 

@@ -496,7 +496,8 @@ def test_the_silhouette_filter_alone_needs_no_edge_maps(builtin_scene_dir, tmp_p
     assert "after_silhouette" in result.counts
     for needs_maps in (ExtractConfig(), ExtractConfig(filter_projection=False),
                        dataclasses.replace(without_maps, complete_lines=True),
-                       dataclasses.replace(without_maps, filter_shading=True)):
+                       dataclasses.replace(without_maps, filter_shading=True),
+                       dataclasses.replace(without_maps, filter_drawing_plane=True)):
         with pytest.raises(ConfigError, match="no-such-maps"):
             extract_run(tmp_path, needs_maps)
 

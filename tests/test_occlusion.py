@@ -15,7 +15,8 @@ import torch
 from edgedog.errors import ConfigError
 from edgedog.hull import carve
 from edgedog.synthetic.cameras import TARGET, orbit_cameras
-from edgedog.train.occlusion import HIDDEN_LOGIT, Occlusion, hide, hull_depth
+from edgedog.train.config import ModelSettings
+from edgedog.train.occlusion import HIDDEN_LOGIT, Occlusion, hide, hull_depth, scene_occlusion
 from edgedog.train.trainer import Trainer
 from tests.helpers.tiny_runs import every_fifth_view, tiny_config
 
@@ -194,3 +195,15 @@ def test_the_projection_cull_also_removes_what_lies_outside_the_hull(occlusion):
     assert [e["event"] for e in events] == ["cull_projection", "cull_hull"]
     assert events[1]["before"] == 2 and events[1]["after"] == 1
     assert torch.allclose(model.means[0], torch.tensor([0.5, 0.5, HIGH[2]], dtype=model.means.dtype))
+
+
+def test_the_shading_carve_only_deepens_the_hull_and_keeps_its_bounds(builtin_scene_dir):
+    scene = every_fifth_view(builtin_scene_dir)
+    cpu = torch.device("cpu")
+    hull = ModelSettings(occlusion="hull", occlusion_cells=48)
+    plain = scene_occlusion(scene, hull, None, cpu)
+    shaded = scene_occlusion(scene, dataclasses.replace(hull, occlusion_shading=True), None, cpu)
+    report = shaded.report
+    assert report["shading_rounds"] >= 1 and report["shading_carved"] >= 0 and report["shading_seconds"] >= 0
+    assert (shaded.depths >= plain.depths).all()  # carving only removes cells: no depth comes nearer
+    assert torch.equal(shaded.clearance, plain.clearance)

@@ -2,7 +2,8 @@
 fixed lights and seen from a sphere of views, its rims (edges) keep the same grey value on both
 sides in every view that draws them, while the contour lines of its side do not, and only the
 contour lines are seen grazing on the visual hull; the sides are told apart in 3D; curves no
-view draws are not judged."""
+view draws are not judged. The drawing-plane test on the same cylinder: its contour lines are
+drawn by views along one plane, its rims from all around."""
 
 from __future__ import annotations
 
@@ -13,6 +14,7 @@ import pytest
 from edgedog.curve_files import EdgeCurves
 from edgedog.curves.config import ExtractConfig
 from edgedog.curves.contours import HullSurface
+from edgedog.curves.drawing_plane import curve_spreads
 from edgedog.curves.shading import (
     consistent_share,
     curve_samples,
@@ -147,6 +149,20 @@ def test_rims_keep_their_shading_and_contours_do_not(scene):
     assert np.all(judged < 0.4), judged
     kept = without_inconsistent(curves, shares, ExtractConfig().shading_min_share)
     assert len(kept.polylines) == 2 and len(kept.lines) == len(contours) - len(judged)
+
+
+def test_the_contour_lines_are_drawn_from_one_plane_and_the_rims_from_all_around(scene):
+    # The drawing-plane test (edgedog.curves.drawing_plane) on the same cylinder: the views that
+    # draw a contour line look along the side's tangent plane there, those that draw a rim do not.
+    contours = equator_contours(scene)
+    curves = EdgeCurves(lines=np.stack(contours), polylines=[rim(BOTTOM), rim(TOP)])
+    spreads = curve_spreads(curve_samples(curves), scene, "test")
+    contour_spreads = spreads[:len(contours)]
+    assert np.isfinite(contour_spreads).all()
+    # the maps' lines are a pixel wide and found within a pixel: views up to about 20 degrees off
+    # the plane still draw a line (spread about 0.08); the rims' views spread as an edge's do
+    assert np.max(contour_spreads) < 0.1, contour_spreads
+    assert np.all(spreads[len(contours):] > 0.2), spreads[len(contours):]
 
 
 def test_only_curves_seen_grazing_on_the_hull_are_judged(scene):

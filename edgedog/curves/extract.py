@@ -10,7 +10,17 @@ from pathlib import Path
 import numpy as np
 
 from edgedog.curve_files import EdgeCurves, write_edges
-from edgedog.curves import completion, contours, filtering, fitting, grouping, junctions, shading, topology
+from edgedog.curves import (
+    completion,
+    contours,
+    drawing_plane,
+    filtering,
+    fitting,
+    grouping,
+    junctions,
+    shading,
+    topology,
+)
 from edgedog.curves.config import ExtractConfig
 from edgedog.errors import InputError
 from edgedog.files import read_json
@@ -205,6 +215,15 @@ def extract_primitives(primitives: EdgePrimitives, config: ExtractConfig = Extra
                                                 config.shading_tolerance)
         curves = shading.without_inconsistent(fitted, shares, config.shading_min_share)
         counts["shading_dropped"] = fitted.num_curves - curves.num_curves
+    if config.filter_drawing_plane and scene is not None and detector is not None:
+        samples = shading.curve_samples(curves)
+        suspects = shading.grazed_curves(samples, surface, detector, config.contour_max_cosine,
+                                         config.contour_probe_cells, config.drawing_plane_grazing)
+        spreads = np.full(len(samples), np.nan)  # only the suspects are judged: the others are kept
+        spreads[suspects] = drawing_plane.curve_spreads(samples[suspects], scene, detector)
+        before = curves.num_curves
+        curves = curves.kept(~(spreads < config.drawing_plane_spread))
+        counts["drawing_plane_dropped"] = before - curves.num_curves
     if config.complete_lines and scene is not None and detector is not None:
         # What the maps draw along the curves the shading test dropped (contours) stays explained.
         added = completion.complete_lines(fitted, surface, detector, scene_size(points.points), config)
@@ -231,7 +250,7 @@ def extract_run(run_dir: str | Path, config: ExtractConfig = ExtractConfig(), sc
     if layers is not None:
         primitives = primitives.in_layers(layers)
     with_maps = (config.filter_projection or config.filter_contours or config.complete_lines
-                 or config.filter_shading)
+                 or config.filter_shading or config.filter_drawing_plane)
     if (with_maps or config.filter_silhouette) and (scene is None or detector is None):
         scene, detector = run_scene(run_dir, maps=with_maps)
     result = extract_primitives(primitives, config, scene, detector)

@@ -176,8 +176,4 @@ def shading_shares(samples: np.ndarray, scene: Scene, detector: str, masks: list
 
 def without_inconsistent(curves: EdgeCurves, shares: np.ndarray, min_share: float) -> EdgeCurves:
     """`curves` less those whose `shading_shares` value is below `min_share` (NaN: kept)."""
-    keep = ~(shares < min_share)
-    lines, beziers = len(curves.lines), len(curves.beziers)
-    return EdgeCurves(lines=curves.lines[keep[:lines]], beziers=curves.beziers[keep[lines:lines + beziers]],
-                      polylines=[p for p, k in zip(curves.polylines, keep[lines + beziers:]) if k],
-                      points=curves.points)
+    return curves.kept(~(shares < min_share))

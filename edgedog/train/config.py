@@ -185,6 +185,14 @@ class ModelSettings(Settings):
     masks leave it larger than the object) is drawn in every view."""
     occlusion_downscale: Annotated[int, Range(1, MAX_DOWNSCALE)] = 4
     """The hull's depth in each view is taken at 1/this of the view's size."""
+    occlusion_shading: bool = False
+    """Carve the hull further where the views that see a cell of its surface read different grey
+    values there (edgedog.shaded_hull: a pocket or a corner between walls that no silhouette
+    shows), before taking its depth; the masks' hull still bounds the primitives. Needs images
+    of a matte object under a fixed light (renders such as ABC-NEF's)."""
+    occlusion_shading_tolerance: Annotated[float, Range(0, 1, open_low=True)] = 0.03
+    """Grey values (0 to 1) a surface cell's views may spread over (between their 20th and 80th
+    percentiles) before it is carved."""
 
 
 @dataclass(frozen=True)

@@ -18,11 +18,16 @@ every view, as without occlusion.
 
 The hull also bounds where an edge can be: a primitive farther outside it than the margin is
 off the object, and the projection cull removes it (`Occlusion.outside`).
+
+With `model.occlusion_shading` the depth is that of the hull carved further by the images'
+grey values (edgedog.shaded_hull: the inside of a corner or a pocket), while the masks' hull
+still bounds the primitives.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import time
 
 import numpy as np
 import torch
@@ -34,6 +39,7 @@ from edgedog.init import scene_cube
 from edgedog.renderer.primitives import Primitives
 from edgedog.scenes.camera import Camera
 from edgedog.scenes.scene import Scene
+from edgedog.shaded_hull import ShadedViews, shade_carve
 from edgedog.train.config import ModelSettings
 from edgedog.train.resolution import any_in_block
 
@@ -131,16 +137,26 @@ class Occlusion:
     @classmethod
     def from_masks(cls, cameras: list[Camera], masks: list[np.ndarray | None], center: np.ndarray,
                    side: float, resolution: int, margin_cells: float, min_views: int,
-                   downscale: int, device: torch.device) -> Occlusion:
+                   downscale: int, device: torch.device, shaded: ShadedViews | None = None,
+                   shading_tolerance: float = 0.0) -> Occlusion:
         """Carve the hull of the views' (H, W) bool `masks` (None: a view without one) over the
         cube (`center` (3,), `side`) at `resolution` cells a side, and take each view's depth
-        of it at 1/`downscale` of the view's size."""
+        of it at 1/`downscale` of the view's size. With `shaded` views, the depth is that of
+        the hull carved further by their grey values (`shade_carve`, `shading_tolerance`)."""
         grid = carve(cameras, masks, center, side, resolution)
+        report = {"views_with_mask": sum(mask is not None for mask in masks), "cells": resolution,
+                  "cell": round(grid.cell, 6), "hull_share": round(float(grid.occupied.float().mean()), 4)}
+        seen_grid = grid
+        if shaded is not None:
+            started = time.perf_counter()
+            seen_grid, carved = shade_carve(grid, shaded, shading_tolerance, min_views)
+            report.update(shading_carved=int(sum(carved)), shading_rounds=len(carved),
+                          shading_seconds=round(time.perf_counter() - started, 2))
         depths, Ks, w2cs = [], [], []
         for camera, mask in zip(cameras, masks):
             small = camera.scaled(max(1, camera.width // downscale), max(1, camera.height // downscale))
             small_mask = None if mask is None else any_in_block(mask, small.width, small.height)
-            depths.append(torch.from_numpy(hull_depth(grid, small, small_mask)) if mask is not None
+            depths.append(torch.from_numpy(hull_depth(seen_grid, small, small_mask)) if mask is not None
                           else torch.full((small.height, small.width), torch.inf))
             Ks.append(torch.from_numpy(small.K))
             w2cs.append(torch.from_numpy(small.w2c))
@@ -149,8 +165,6 @@ class Occlusion:
             h, w = max(s[0] for s in shapes), max(s[1] for s in shapes)
             depths = [torch.nn.functional.pad(d, (0, w - d.shape[1], 0, h - d.shape[0]), value=torch.inf)
                       for d in depths]
-        report = {"views_with_mask": sum(mask is not None for mask in masks), "cells": resolution,
-                  "cell": round(grid.cell, 6), "hull_share": round(float(grid.occupied.float().mean()), 4)}
         clearance = torch.from_numpy((distance_transform_edt(~grid.occupied.numpy()) * grid.cell)
                                      .astype(np.float32)).to(device)
         return cls(torch.stack(depths).to(device), torch.stack(Ks).to(device), torch.stack(w2cs).to(device),
@@ -240,6 +254,11 @@ def scene_occlusion(scene: Scene, model: ModelSettings, side: float | None,
         raise ConfigError(f"model.occlusion='hull' needs object masks (mask files or RGBA images), "
                           f"and the scene {scene.root} has none that can be read")
     center, side = scene_cube(scene, side)
+    shaded = None
+    if model.occlusion_shading:
+        masked = [i for i, mask in enumerate(masks) if mask is not None]
+        shaded = ShadedViews.of([scene.camera(i) for i in masked], (scene.load_image(i) for i in masked),
+                                [masks[i] for i in masked], model.occlusion_downscale)
     return Occlusion.from_masks(scene.cameras, masks, center, side, model.occlusion_cells,
                                 model.occlusion_margin, model.occlusion_min_views,
-                                model.occlusion_downscale, device)
+                                model.occlusion_downscale, device, shaded, model.occlusion_shading_tolerance)
