@@ -43,6 +43,18 @@ MAX_ROUNDS = 64
 NEIGHBOURS = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]])
 
 
+def view_projection(points: torch.Tensor, K: torch.Tensor,
+                    w2c: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """Points (N, 3) in the views (K (V, 3, 3), w2c (V, 4, 4), of the points' dtype): (V, N, 2)
+    pixel positions, those not finite at -2 and all within [-2, 1e6] so that a cast to int stays
+    in range (meaningless for a point at or behind a camera); and (V, N) camera z."""
+    cam = torch.einsum("vij,nj->vni", w2c[:, :3, :3], points) + w2c[:, None, :3, 3]
+    depth = cam[..., 2]
+    safe = torch.where(depth > 0, depth, torch.ones_like(depth))
+    uv = torch.einsum("vij,vnj->vni", K[:, :2, :2], cam[..., :2] / safe[..., None]) + K[:, None, :2, 2]
+    return torch.nan_to_num(uv, nan=-2.0, posinf=-2.0, neginf=-2.0).clamp(-2.0, 1e6), depth
+
+
 @dataclass(frozen=True)
 class ShadedViews:
     """The masked views as the shading carve reads them, at 1/downscale of their size (padded to
@@ -65,25 +77,23 @@ class ShadedViews:
            downscale: int) -> ShadedViews:
         """From the views' full-size `cameras`, (H, W, 3) float RGB `images` (read one at a time:
         a generator holds one full-size image, not all) and (H, W) bool `masks`."""
-        Ks, w2cs, greys, wholes = [], [], [], []
+        smalls, greys, wholes = [], [], []
         for camera, image, mask in zip(cameras, images, masks):
-            small = camera.scaled(max(1, camera.width // downscale), max(1, camera.height // downscale))
+            small = camera.reduced(downscale)
             size = (small.width, small.height)
-            full_grey = image.mean(axis=2).astype(np.float32)
-            greys.append(cv2.resize(full_grey, size, interpolation=cv2.INTER_AREA))
+            grey = image.mean(axis=2).astype(np.float32)
+            greys.append(cv2.resize(grey, size, interpolation=cv2.INTER_AREA))
             wholes.append(cv2.resize(mask.astype(np.float32), size, interpolation=cv2.INTER_AREA) > 0.999)
-            Ks.append(small.K)
-            w2cs.append(small.w2c)
+            smalls.append(small)
         height, width = max(g.shape[0] for g in greys), max(g.shape[1] for g in greys)
-        pad = [(0, height - g.shape[0], 0, width - g.shape[1]) for g in greys]
-        grey = np.stack([np.pad(g, ((0, p[1]), (0, p[3]))) for g, p in zip(greys, pad)])
-        whole = np.stack([np.pad(m, ((0, p[1]), (0, p[3]))) for m, p in zip(wholes, pad)])
-        as_float = {"dtype": torch.float32}
-        return cls(torch.tensor(np.array(Ks), **as_float), torch.tensor(np.array(w2cs), **as_float),
-                   torch.from_numpy(grey), torch.from_numpy(whole))
 
-    def __len__(self) -> int:
-        return int(self.K.shape[0])
+        def padded(images: list[np.ndarray]) -> torch.Tensor:
+            return torch.from_numpy(np.stack([np.pad(i, ((0, height - i.shape[0]), (0, width - i.shape[1])))
+                                              for i in images]))
+
+        K = torch.from_numpy(np.array([c.K for c in smalls], np.float32))
+        w2c = torch.from_numpy(np.array([c.w2c for c in smalls], np.float32))
+        return cls(K, w2c, padded(greys), padded(wholes))
 
     def readings(self, centres: np.ndarray, cell: float) -> tuple[torch.Tensor, torch.Tensor]:
         """For the centres (M, 3) of the hull's surface cells (`cell` world units a side): (V, M)
@@ -94,13 +104,7 @@ class ShadedViews:
         on the four pixels around its projection, so that a surface whose cells project about a
         pixel apart leaves no holes to see through."""
         views, height, width = self.grey.shape
-        points = torch.from_numpy(centres.astype(np.float32))
-        cam = torch.einsum("vij,mj->vmi", self.w2c[:, :3, :3], points) + self.w2c[:, None, :3, 3]
-        depth = cam[..., 2]
-        safe = torch.where(depth > 0, depth, torch.ones_like(depth))
-        uv = (torch.einsum("vij,vmj->vmi", self.K[:, :2, :2], cam[..., :2] / safe[..., None])
-              + self.K[:, None, :2, 2])
-        uv = torch.nan_to_num(uv, nan=-2.0, posinf=-2.0, neginf=-2.0).clamp(-2.0, 2.0 * max(width, height))
+        uv, depth = view_projection(torch.from_numpy(centres.astype(np.float32)), self.K, self.w2c)
         left, top = uv[..., 0].floor().long(), uv[..., 1].floor().long()
         on_image = (depth > 0) & (left >= 0) & (left + 1 < width) & (top >= 0) & (top + 1 < height)
         base = torch.arange(views)[:, None] * (height * width)

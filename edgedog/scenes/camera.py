@@ -97,6 +97,10 @@ class Camera:
             & (pixels[:, 1] >= 0) & (pixels[:, 1] < self.height)
         return pixels, inside
 
+    def reduced(self, factor: int) -> Camera:
+        """The same camera for the image reduced to 1/`factor` of its size (at least a pixel a side)."""
+        return self.scaled(max(1, self.width // factor), max(1, self.height // factor))
+
     def scaled(self, width: int, height: int) -> Camera:
         """The same camera for an image resized to `width` x `height` pixels.
 

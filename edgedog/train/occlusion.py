@@ -39,7 +39,7 @@ from edgedog.init import scene_cube
 from edgedog.renderer.primitives import Primitives
 from edgedog.scenes.camera import Camera
 from edgedog.scenes.scene import Scene
-from edgedog.shaded_hull import ShadedViews, shade_carve
+from edgedog.shaded_hull import ShadedViews, shade_carve, view_projection
 from edgedog.train.config import ModelSettings
 from edgedog.train.resolution import any_in_block
 
@@ -154,7 +154,7 @@ class Occlusion:
                           shading_seconds=round(time.perf_counter() - started, 2))
         depths, Ks, w2cs = [], [], []
         for camera, mask in zip(cameras, masks):
-            small = camera.scaled(max(1, camera.width // downscale), max(1, camera.height // downscale))
+            small = camera.reduced(downscale)
             small_mask = None if mask is None else any_in_block(mask, small.width, small.height)
             depths.append(torch.from_numpy(hull_depth(seen_grid, small, small_mask)) if mask is not None
                           else torch.full((small.height, small.width), torch.inf))
@@ -193,12 +193,8 @@ class Occlusion:
         """For views first..last-1 and the (N, 3) `points`: (V', N) bool whether each projects
         into the view's depth map, and whether it lies more than the margin behind the largest
         of the four depths around its projection."""
-        w2c, K, depths = self.w2c[first:last], self.K[first:last], self.depths[first:last]
-        cam = torch.einsum("vij,nj->vni", w2c[:, :3, :3], points) + w2c[:, None, :3, 3]
-        z = cam[..., 2]
-        safe = torch.where(z > 0, z, torch.ones_like(z))
-        uv = torch.einsum("vij,vnj->vni", K[:, :2, :2], cam[..., :2] / safe[..., None]) + K[:, None, :2, 2]
-        uv = torch.nan_to_num(uv, nan=-2.0, posinf=-2.0, neginf=-2.0).clamp(-2.0, 1e6)
+        depths = self.depths[first:last]
+        uv, z = view_projection(points, self.K[first:last], self.w2c[first:last])
         height, width = depths.shape[1:]
         left, top = torch.floor(uv[..., 0]).long(), torch.floor(uv[..., 1]).long()
         inside = (z > 0) & (left >= 0) & (left + 1 < width) & (top >= 0) & (top + 1 < height)
