@@ -128,12 +128,13 @@ def test_one_extraction_carves_the_hull_once(bracket, monkeypatch):
     directions /= np.linalg.norm(directions, axis=1, keepdims=True)
     count = len(points)
     primitives = EdgePrimitives(points, directions, np.full(count, 3.0), np.ones(count), np.ones((count, 2)))
-    carved, read, load_mask = [], [], scene.load_mask
+    carved, read, read_coverage = [], [], type(scene)._read_coverage
     monkeypatch.setattr(contours, "scene_hull", lambda *args: carved.append(args) or scene_hull(*args))
-    monkeypatch.setattr(scene, "load_mask", lambda index: read.append(index) or load_mask(index))
+    monkeypatch.setattr(type(scene), "_read_coverage",
+                        lambda self, index: read.append(index) or read_coverage(self, index))
     config = ExtractConfig(complete_lines=True, completion_views=3, contour_hull_cells=64,
                            filter_projection=False, filter_silhouette=False, filter_outliers="off")
     result = extract_primitives(primitives, config, scene, "exact")
     assert result.counts["completed_lines"] >= 1 and "after_contours" in result.counts
     assert len(carved) == 1
-    assert len(read) == len(scene)  # each view's mask read once
+    assert len(read) == len(scene)  # each view's mask read from its file once

@@ -197,6 +197,10 @@ class _TwoViewScene:
     """A stand-in for Scene: view 0 looks at the origin, view 1 looks away from it."""
 
     detector = "exact"
+    read_cache = None  # its maps are in memory: `with_read_cache` keeps the scene as it is
+
+    def with_read_cache(self):
+        return self
 
     def __init__(self):
         K = intrinsics(50.0, 50.0, 49.5, 49.5)
@@ -310,7 +314,8 @@ def test_extract_run_counts_the_silhouette_filter_after_the_outliers(tmp_path):
     beside = points + [10.3 * 0.06, 0.0, 0.0]  # an edge-like tube 6 px outside the mask
     write_primitives(tmp_path / "primitives.ply", np.vstack([points, beside]),
                      np.vstack([tangents, tangents]), 0.6)
-    config = ExtractConfig(filter_projection=False, filter_outliers="on", filter_contours=False)
+    config = ExtractConfig(filter_projection=False, filter_outliers="on", filter_contours=False,
+                           filter_drawing_plane=False)
     result = extract_run(tmp_path, config, _MaskedScene(), "exact")
     assert list(result.counts)[:4] == ["primitives", "after_opacity", "after_outliers", "after_silhouette"]
     kept = result.points.points
@@ -478,7 +483,8 @@ def test_extract_run_with_nothing_left_writes_empty_files(tmp_path):
     points, tangents = segment([0.0, 0.0, -0.2], [0.0, 0.0, 0.2], 0.002)
     write_primitives(tmp_path / "primitives.ply", points, tangents, 0.1)
     result = extract_run(tmp_path, ExtractConfig(filter_projection=False, filter_silhouette=False,
-                                                 filter_contours=False, complete_lines=False))
+                                                 filter_contours=False, complete_lines=False,
+                                                 filter_drawing_plane=False))
     assert result.counts["after_opacity"] == 0 and result.curves.num_curves == 0
     for name in ("curves.json", "curves.obj", "curves.ply", "edge_points.ply"):
         assert read_edges(tmp_path / name).is_empty
@@ -491,7 +497,8 @@ def test_the_silhouette_filter_alone_needs_no_edge_maps(builtin_scene_dir, tmp_p
     # the line completion would ask for them
     log = {"scene": str(builtin_scene_dir), "detector": "no-such-maps"}
     (tmp_path / "log.json").write_text(json.dumps(log))
-    without_maps = ExtractConfig(filter_projection=False, filter_contours=False, complete_lines=False)
+    without_maps = ExtractConfig(filter_projection=False, filter_contours=False, complete_lines=False,
+                                 filter_drawing_plane=False)
     result = extract_run(tmp_path, without_maps)
     assert "after_silhouette" in result.counts
     for needs_maps in (ExtractConfig(), ExtractConfig(filter_projection=False),

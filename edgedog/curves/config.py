@@ -136,14 +136,14 @@ class ExtractConfig(Settings):
     shading_tolerance: Share = 0.02
     """Largest difference of a side's grey value (0 to 1) from its median over the views that
     still counts as the same face."""
-    filter_drawing_plane: bool = False
+    filter_drawing_plane: bool = True
     """Drop the fitted curves that the views drawing them all look at from near one plane through
     them (`edgedog.curves.drawing_plane`): a view draws the contour of a curved face where it looks
     along the surface, so a contour's drawing views lie near its tangent plane, while an edge's
     come from all around. Only the contour filter's suspects are judged (`drawing_plane_grazing`);
-    skipped on scenes without masks. Off: on 19 CAD designs at `quick` F10 +0.76 (the loft +11.4,
-    the stepped shaft +2.2, none worse), the shared objects not yet measured
-    (docs/notes/2026-12-02-shading-carve-and-drawing-plane.md)."""
+    skipped on scenes without masks. On the 42 CAD designs at `quick` F10 +0.36 (7 better, the
+    loft +11.4, the stepped shaft +2.3, the cup +0.5; none worse); the shared objects' six runs
+    unchanged (docs/RESULTS.md). False: the curves as fitted."""
     drawing_plane_spread: Annotated[float, Range(0, 1)] = 0.08
     """Drop a suspect curve whose drawing directions spread off their best plane by less than
     this (the smallest eigenvalue of their mean outer product, median over the curve; 1/3 for

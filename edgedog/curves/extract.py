@@ -199,6 +199,8 @@ def extract_primitives(primitives: EdgePrimitives, config: ExtractConfig = Extra
             the scene only).
     """
     counts: dict[str, int] = {}
+    if scene is not None and scene.read_cache is None:
+        scene = scene.with_read_cache()  # the filters read the same maps and masks several times
     # Carved on first use, and then shared by the contour filter and the line completion.
     surface = None if scene is None else contours.HullSurface(scene, config.contour_hull_cells)
     points = filter_primitives(primitives, config, scene, detector, counts, surface)

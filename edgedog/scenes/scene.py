@@ -13,6 +13,7 @@ from edgedog.errors import InputError
 from edgedog.scenes.camera import Camera
 from edgedog.scenes.distortion import Distortion
 from edgedog.scenes.images import Background, as_gray, as_rgb, read_raw, resize_to, to_unit_float
+from edgedog.scenes.read_cache import DEFAULT_MAX_BYTES, ReadCache
 
 
 @dataclass(frozen=True)
@@ -61,6 +62,8 @@ class Scene:
         damaged: image file -> why it cannot be read (cut short, undecodable, too large), for
             the images found so when the scene loaded; reading one raises that InputError.
         skipped: image file -> its problem, for the views `without_damaged` took out.
+        read_cache: where edge maps and coverage are kept once decoded (`with_read_cache`);
+            None: every call reads its file.
     """
 
     root: Path
@@ -74,6 +77,19 @@ class Scene:
     background: Background = (0.0, 0.0, 0.0)
     damaged: dict[Path, str] = field(default_factory=dict)
     skipped: dict[Path, str] = field(default_factory=dict)
+    read_cache: ReadCache | None = field(default=None, compare=False, repr=False)
+
+    def with_read_cache(self, max_bytes: int = DEFAULT_MAX_BYTES) -> Scene:
+        """The scene, its edge maps and coverage kept once read (at most `max_bytes`, read-only
+        arrays); this scene is left reading its files."""
+        return dataclasses.replace(self, read_cache=ReadCache(max_bytes))
+
+    def _cached(self, key: tuple, read):
+        """`read()`, through the read cache when the scene has one. `key` names the file and
+        what is made of it; the loaded size is added, so that a rescaled scene reads afresh."""
+        if self.read_cache is None:
+            return read()
+        return self.read_cache.get((*key, self.downscale), read)
 
     def without_damaged(self) -> Scene:
         """The scene without the views whose image is damaged (recorded in `skipped`)."""
@@ -133,7 +149,8 @@ class Scene:
                 f"no '{detector}' edge map for view {view.name} "
                 f"(available: {', '.join(sorted(view.edge_paths)) or 'none'})",
             )
-        return as_gray(self._read(view.edge_paths[detector], index))
+        path = view.edge_paths[detector]
+        return self._cached(("edge", path), lambda: as_gray(self._read(path, index)))
 
     @property
     def masked_views(self) -> list[int]:
@@ -148,6 +165,12 @@ class Scene:
         when only this view lacks one: a scene whose images carry alpha in some views only
         (grey or RGB images among RGBA ones) is decided view by view, and this one has none.
         """
+        view = self.views[index]
+        source = view.mask_path or view.image_path
+        return self._cached(("coverage", source), lambda: self._read_coverage(index))
+
+    def _read_coverage(self, index: int) -> np.ndarray | None:
+        """`load_coverage` from the files."""
         view = self.views[index]
         if view.mask_path is not None:
             return as_gray(self._read(view.mask_path, index))
