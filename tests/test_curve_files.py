@@ -224,3 +224,11 @@ def test_ply_edge_index_out_of_range(tmp_path):
     path = tmp_path / "bad_edges.ply"
     _write_ply(path, np.zeros((3, 3)), [(0, 1), (1, 7)])
     _assert_input_error(path, "out of range")
+
+
+def test_kept_drops_by_the_order_lines_beziers_polylines():
+    curves = EdgeCurves(lines=np.zeros((2, 2, 3)), beziers=np.ones((2, 4, 3)),
+                        polylines=[np.full((3, 3), 2.0), np.full((4, 3), 3.0)], points=np.zeros((5, 3)))
+    kept = curves.kept(~(np.array([0.1, np.nan, 0.9, 0.2, 0.3, 0.8]) < 0.4))  # NaN: kept
+    assert len(kept.lines) == 1 and len(kept.beziers) == 1 and [len(p) for p in kept.polylines] == [4]
+    assert len(kept.points) == 5  # free points are no curves: kept

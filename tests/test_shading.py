@@ -17,11 +17,10 @@ from edgedog.curves.contours import HullSurface
 from edgedog.curves.drawing_plane import curve_spreads
 from edgedog.curves.shading import (
     consistent_share,
+    curve_grazing,
     curve_samples,
-    grazed_curves,
     shading_shares,
     side_offsets,
-    without_inconsistent,
 )
 from edgedog.scenes.camera import Camera, intrinsics, rigid_inverse
 from edgedog.synthetic.cameras import TARGET, orbit_cameras
@@ -147,7 +146,7 @@ def test_rims_keep_their_shading_and_contours_do_not(scene):
     judged = contour_shares[np.isfinite(contour_shares)]
     assert len(judged) >= 0.8 * len(contours)  # most contours are drawn by enough views to judge
     assert np.all(judged < 0.4), judged
-    kept = without_inconsistent(curves, shares, ExtractConfig().shading_min_share)
+    kept = curves.kept(~(shares < ExtractConfig().shading_min_share))
     assert len(kept.polylines) == 2 and len(kept.lines) == len(contours) - len(judged)
 
 
@@ -171,8 +170,9 @@ def test_only_curves_seen_grazing_on_the_hull_are_judged(scene):
     contours = equator_contours(scene)
     curves = EdgeCurves(lines=np.stack(contours), polylines=[rim(BOTTOM), rim(TOP)])
     config = ExtractConfig()
-    grazed = grazed_curves(curve_samples(curves), HullSurface(scene, 64), "test",
-                           config.contour_max_cosine, config.contour_probe_cells, config.shading_grazing)
+    grazing = curve_grazing(curve_samples(curves), HullSurface(scene, 64), "test",
+                            config.contour_max_cosine, config.contour_probe_cells)
+    grazed = grazing >= config.shading_grazing
     assert grazed[:len(contours)].mean() > 0.8 and not grazed[len(contours):].any()
 
 
@@ -203,11 +203,3 @@ def test_consistent_share_compares_each_piece_over_the_views():
     values = np.array([[0.5, 0.2, 0.7], [0.51, 0.4, np.nan], [np.nan, 0.6, np.nan], [0.9, 0.8, 0.7]])
     assert consistent_share(values, 0.02) == pytest.approx((2 + 0) / (3 + 4))
     assert np.isnan(consistent_share(values[:, 2:], 0.02))
-
-
-def test_without_inconsistent_drops_by_the_order_lines_beziers_polylines():
-    curves = EdgeCurves(lines=np.zeros((2, 2, 3)), beziers=np.ones((2, 4, 3)),
-                        polylines=[np.full((3, 3), 2.0), np.full((4, 3), 3.0)], points=np.zeros((5, 3)))
-    kept = without_inconsistent(curves, np.array([0.1, np.nan, 0.9, 0.2, 0.3, 0.8]), 0.4)
-    assert len(kept.lines) == 1 and len(kept.beziers) == 1 and [len(p) for p in kept.polylines] == [4]
-    assert len(kept.points) == 5  # free points are no curves: kept

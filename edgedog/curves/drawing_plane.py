@@ -13,7 +13,7 @@ mean outer product d d^T (0 for directions in one plane, 1/3 for directions from
 What it cannot tell apart: an edge that only a narrow fan of views draws (a shallow chamfer
 seen as a line from some sides only) spreads little off a plane too, so only the contour
 filter's suspects are judged (some views draw them at grazing incidence on the visual hull,
-`shading.grazed_curves`), and the limit is set where no edge of the CAD designs and the shared
+`shading.curve_grazing`), and the limit is set where no edge of the CAD designs and the shared
 ABC objects measured was below it (docs/notes). A narrow cone of views (an edge few views see)
 fits a plane as well; those curves are kept only if they are not suspects.
 """

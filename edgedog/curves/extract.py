@@ -208,24 +208,31 @@ def extract_primitives(primitives: EdgePrimitives, config: ExtractConfig = Extra
     fitted, chains = extract_curves(points.points, directions, config)
     counts.update(chains=len(chains), lines=len(fitted.lines), beziers=len(fitted.beziers))
     curves = fitted
-    if config.filter_shading and scene is not None and detector is not None and surface.every_view_masked:
+    judge_shading = (config.filter_shading and scene is not None and detector is not None
+                     and surface.every_view_masked)
+    judge_plane = config.filter_drawing_plane and scene is not None and detector is not None
+    if judge_shading or judge_plane:
+        # Both tests judge only the curves some drawing views see grazing on the hull (suspects of
+        # the contour filter's test), each at its own share; the grazing is measured once.
         samples = shading.curve_samples(fitted)
-        grazed = shading.grazed_curves(samples, surface, detector, config.contour_max_cosine,
-                                       config.contour_probe_cells, config.shading_grazing)
-        shares = np.full(len(samples), np.nan)  # only the suspects are judged: the others are kept
-        shares[grazed] = shading.shading_shares(samples[grazed], scene, detector, surface.masks,
-                                                config.shading_tolerance)
-        curves = shading.without_inconsistent(fitted, shares, config.shading_min_share)
-        counts["shading_dropped"] = fitted.num_curves - curves.num_curves
-    if config.filter_drawing_plane and scene is not None and detector is not None:
-        samples = shading.curve_samples(curves)
-        suspects = shading.grazed_curves(samples, surface, detector, config.contour_max_cosine,
-                                         config.contour_probe_cells, config.drawing_plane_grazing)
-        spreads = np.full(len(samples), np.nan)  # only the suspects are judged: the others are kept
-        spreads[suspects] = drawing_plane.curve_spreads(samples[suspects], scene, detector)
-        before = curves.num_curves
-        curves = curves.kept(~(spreads < config.drawing_plane_spread))
-        counts["drawing_plane_dropped"] = before - curves.num_curves
+        grazing = shading.curve_grazing(samples, surface, detector, config.contour_max_cosine,
+                                        config.contour_probe_cells)
+        keep = np.ones(len(samples), bool)
+        if judge_shading:
+            suspects = grazing >= config.shading_grazing
+            shares = np.full(len(samples), np.nan)  # the others are kept
+            shares[suspects] = shading.shading_shares(samples[suspects], scene, detector, surface.masks,
+                                                      config.shading_tolerance)
+            keep = ~(shares < config.shading_min_share)
+            counts["shading_dropped"] = int((~keep).sum())
+        if judge_plane:
+            suspects = keep & (grazing >= config.drawing_plane_grazing)
+            spreads = np.full(len(samples), np.nan)
+            spreads[suspects] = drawing_plane.curve_spreads(samples[suspects], scene, detector)
+            flat = spreads < config.drawing_plane_spread
+            counts["drawing_plane_dropped"] = int(flat.sum())
+            keep &= ~flat
+        curves = fitted.kept(keep)
     if config.complete_lines and scene is not None and detector is not None:
         # What the maps draw along the curves the shading test dropped (contours) stays explained.
         added = completion.complete_lines(fitted, surface, detector, scene_size(points.points), config)

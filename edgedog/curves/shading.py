@@ -20,7 +20,7 @@ circular edge). A side is consistent where most of these values lie within
 `shading_tolerance` of their piece's median over the views; values on the background (outside
 the view's mask) are left out, since an outline's far side changes with what lies behind it.
 A curve is dropped when either side is inconsistent and it is a suspect: its points are seen
-at grazing incidence on the visual hull by some of the views that draw them (`grazed_curves`,
+at grazing incidence on the visual hull by some of the views that draw them (`curve_grazing`,
 the contour filter's test at a share below that filter's own limit).
 
 Limits (measured on the CAD designs, docs/RESULTS.md): the images must be renders or photos of
@@ -142,17 +142,18 @@ def judged_views(count: int) -> np.ndarray:
     return np.unique(np.linspace(0, count - 1, min(count, MAX_VIEWS)).round().astype(np.int64))
 
 
-def grazed_curves(samples: np.ndarray, surface: HullSurface, detector: str, max_cosine: float,
-                  probe: float, min_share: float) -> np.ndarray:
-    """(C,) bool, the curves of `samples` (C, SAMPLES, 3) whose points at least `min_share` of the
-    views drawing them see, on average, at grazing incidence on the visual hull of `surface`
-    (`contours.grazing_shares`, with the contour filter's `max_cosine` and `probe`); all False
-    on a scene without masks."""
+def curve_grazing(samples: np.ndarray, surface: HullSurface, detector: str, max_cosine: float,
+                  probe: float) -> np.ndarray:
+    """(C,) for each curve of `samples` (C, SAMPLES, 3), the share of the views drawing its points
+    that see them at grazing incidence on the visual hull of `surface`, on average over its
+    points (`contours.grazing_shares`, with the contour filter's `max_cosine` and `probe`): the
+    shading and drawing-plane tests judge the curves at or above their own share. NaN on a
+    scene without masks, so that no share picks a curve there."""
     if not len(samples) or surface.grid is None:
-        return np.zeros(len(samples), bool)
+        return np.full(len(samples), np.nan)
     points = samples.reshape(-1, 3)
     shares = grazing_shares(points, surface.normals(points, probe), surface.scene, detector, max_cosine)
-    return shares.reshape(len(samples), SAMPLES).mean(axis=1) >= min_share
+    return shares.reshape(len(samples), SAMPLES).mean(axis=1)
 
 
 def shading_shares(samples: np.ndarray, scene: Scene, detector: str, masks: list[np.ndarray],
@@ -172,8 +173,3 @@ def shading_shares(samples: np.ndarray, scene: Scene, detector: str, masks: list
                       consistent_share(piece_values(sides[c, :, :, 1]), tolerance))
               for c in range(len(samples))]
     return np.array(shares, dtype=np.float64).reshape(len(samples))
-
-
-def without_inconsistent(curves: EdgeCurves, shares: np.ndarray, min_share: float) -> EdgeCurves:
-    """`curves` less those whose `shading_shares` value is below `min_share` (NaN: kept)."""
-    return curves.kept(~(shares < min_share))

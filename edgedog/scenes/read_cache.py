@@ -43,8 +43,9 @@ class ReadCache:
         return self._bytes
 
     def get(self, key: Hashable, read: Callable[[], np.ndarray | None]) -> np.ndarray | None:
-        """The array kept under `key`, or `read()`'s, kept read-only when it fits (None is kept
-        too: a view without a mask). An array larger than `max_bytes` is returned unkept."""
+        """The array kept under `key`, or else `read()`'s, made read-only and kept (None is kept
+        too: a view without a mask). An array larger than `max_bytes` is handed out, read-only,
+        without being kept."""
         with self._lock:
             if key in self._entries:
                 self._entries.move_to_end(key)
