@@ -13,7 +13,14 @@ import pytest
 from edgedog.builtin.writer import write_scene
 from edgedog.curve_files import EdgeCurves
 from edgedog.curves import contours
-from edgedog.curves.completion import ViewEvidence, complete_lines, pair_candidates, refine, samples_along
+from edgedog.curves.completion import (
+    ViewEvidence,
+    complete_lines,
+    gather_evidence,
+    pair_candidates,
+    refine,
+    samples_along,
+)
 from edgedog.curves.config import ExtractConfig
 from edgedog.curves.contours import HullSurface, scene_hull
 from edgedog.curves.extract import extract_primitives, scene_size
@@ -88,7 +95,11 @@ def bracket(tmp_path_factory):
 
 def _complete(scene, curves: EdgeCurves, size: float) -> np.ndarray:
     config = ExtractConfig(completion_views=3, contour_hull_cells=64)
-    return complete_lines(curves, HullSurface(scene, config.contour_hull_cells), "exact", size, config)
+    surface = HullSurface(scene, config.contour_hull_cells)
+    evidence = gather_evidence(curves, surface, "exact", size, config)
+    if evidence is None:
+        return np.empty((0, 2, 3))
+    return complete_lines(evidence, surface, "exact", size, config)
 
 
 @pytest.mark.parametrize("kind", ["concave", "convex"])

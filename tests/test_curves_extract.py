@@ -484,7 +484,7 @@ def test_extract_run_with_nothing_left_writes_empty_files(tmp_path):
     write_primitives(tmp_path / "primitives.ply", points, tangents, 0.1)
     result = extract_run(tmp_path, ExtractConfig(filter_projection=False, filter_silhouette=False,
                                                  filter_contours=False, complete_lines=False,
-                                                 filter_drawing_plane=False))
+                                                 complete_circles=False, filter_drawing_plane=False))
     assert result.counts["after_opacity"] == 0 and result.curves.num_curves == 0
     for name in ("curves.json", "curves.obj", "curves.ply", "edge_points.ply"):
         assert read_edges(tmp_path / name).is_empty
@@ -493,16 +493,17 @@ def test_extract_run_with_nothing_left_writes_empty_files(tmp_path):
 def test_the_silhouette_filter_alone_needs_no_edge_maps(builtin_scene_dir, tmp_path):
     points, tangents = segment([0.4, 0.4, 0.2], [0.6, 0.4, 0.2], 0.002)
     write_primitives(tmp_path / "primitives.ply", points, tangents, 0.6)
-    # maps of an unknown detector: only the projection and contour filters, the shading test and
-    # the line completion would ask for them
+    # maps of an unknown detector: only the projection and contour filters, the shading and
+    # drawing-plane tests and the completions would ask for them
     log = {"scene": str(builtin_scene_dir), "detector": "no-such-maps"}
     (tmp_path / "log.json").write_text(json.dumps(log))
     without_maps = ExtractConfig(filter_projection=False, filter_contours=False, complete_lines=False,
-                                 filter_drawing_plane=False)
+                                 complete_circles=False, filter_drawing_plane=False)
     result = extract_run(tmp_path, without_maps)
     assert "after_silhouette" in result.counts
     for needs_maps in (ExtractConfig(), ExtractConfig(filter_projection=False),
                        dataclasses.replace(without_maps, complete_lines=True),
+                       dataclasses.replace(without_maps, complete_circles=True),
                        dataclasses.replace(without_maps, filter_shading=True),
                        dataclasses.replace(without_maps, filter_drawing_plane=True)):
         with pytest.raises(ConfigError, match="no-such-maps"):

@@ -268,20 +268,37 @@ def suppress(segments: np.ndarray, order: np.ndarray, radius: float) -> list[int
     return kept
 
 
-def complete_lines(curves: EdgeCurves, surface: HullSurface, detector: str, size: float,
+@dataclass(frozen=True)
+class Evidence:
+    """What the completions read of a scene: each view's `ViewEvidence` against the curves found,
+    and those curves' dense samples (N, 3)."""
+
+    views: list[ViewEvidence]
+    existing: np.ndarray
+
+
+def gather_evidence(curves: EdgeCurves, surface: HullSurface, detector: str, size: float,
+                    config: ExtractConfig) -> Evidence | None:
+    """Every view's evidence against `curves` (`view_evidence`, with `completion_explained`) on
+    the scene of `surface`; `size` is the scene size. None on a scene without masks or without
+    curves: there is nothing to complete, or no hull to keep floaters out."""
+    scene = surface.scene
+    if not surface.every_view_masked or curves.num_curves == 0 or size <= 0:
+        return None
+    existing = curves.sample(size / 1000)
+    views = [view_evidence(scene.camera(i), scene.load_edge_map(i, detector), surface.masks[i], existing,
+                           config.completion_explained) for i in range(len(scene))]
+    return Evidence(views, existing)
+
+
+def complete_lines(evidence: Evidence, surface: HullSurface, detector: str, size: float,
                    config: ExtractConfig) -> np.ndarray:
-    """(L, 2, 3) straight edges the `curves` miss (see the module's doc), with `config`'s
-    `completion_*` settings, on the scene of `surface`, whose visual hull the contour test uses;
-    `size` is the scene size the relative lengths refer to. Empty on a scene without masks or
-    without curves."""
+    """(L, 2, 3) straight edges the curves of `evidence` miss (see the module's doc), with
+    `config`'s `completion_*` settings, on the scene of `surface`, whose visual hull the contour
+    test uses; `size` is the scene size the relative lengths refer to."""
     scene = surface.scene
     min_views, cover = config.completion_views, config.completion_cover
-    masks = surface.masks
-    if not surface.every_view_masked or curves.num_curves == 0 or size <= 0:
-        return np.empty((0, 2, 3))
-    existing = curves.sample(size / 1000)
-    views = [view_evidence(scene.camera(i), scene.load_edge_map(i, detector), masks[i], existing,
-                           config.completion_explained) for i in range(len(scene))]
+    views, existing = evidence.views, evidence.existing
     candidates = all_candidates(views, np.asarray(scene.bounds, dtype=np.float64), MIN_OVERLAP * size)
     supported, outside = support(views, samples_along(candidates), False, cover)
     count = supported.sum(axis=1)

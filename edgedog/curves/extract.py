@@ -11,6 +11,7 @@ import numpy as np
 
 from edgedog.curve_files import EdgeCurves, write_edges
 from edgedog.curves import (
+    circles,
     completion,
     contours,
     drawing_plane,
@@ -233,11 +234,22 @@ def extract_primitives(primitives: EdgePrimitives, config: ExtractConfig = Extra
             counts["drawing_plane_dropped"] = int(flat.sum())
             keep &= ~flat
         curves = fitted.kept(keep)
-    if config.complete_lines and scene is not None and detector is not None:
+    if (config.complete_lines or config.complete_circles) and scene is not None and detector is not None:
         # What the maps draw along the curves the shading test dropped (contours) stays explained.
-        added = completion.complete_lines(fitted, surface, detector, scene_size(points.points), config)
-        curves = EdgeCurves(lines=np.concatenate([curves.lines, added]), beziers=curves.beziers)
-        counts["completed_lines"] = len(added)
+        size = scene_size(points.points)
+        evidence = completion.gather_evidence(fitted, surface, detector, size, config)
+        lines, arcs = np.empty((0, 2, 3)), np.empty((0, 4, 3))
+        if evidence is not None and config.complete_lines:
+            lines = completion.complete_lines(evidence, surface, detector, size, config)
+        if evidence is not None and config.complete_circles:
+            axes = circles.found_circles(chains, config.bezier_tolerance * size, size)
+            arcs = circles.complete_circles(axes, evidence, size, config)
+        curves = EdgeCurves(lines=np.concatenate([curves.lines, lines]),
+                            beziers=np.concatenate([curves.beziers, arcs]))
+        if config.complete_lines:
+            counts["completed_lines"] = len(lines)
+        if config.complete_circles:
+            counts["completed_circles"] = len(arcs) // 4
     return RunExtraction(curves, points, directions, counts)
 
 
@@ -259,7 +271,7 @@ def extract_run(run_dir: str | Path, config: ExtractConfig = ExtractConfig(), sc
     if layers is not None:
         primitives = primitives.in_layers(layers)
     with_maps = (config.filter_projection or config.filter_contours or config.complete_lines
-                 or config.filter_shading or config.filter_drawing_plane)
+                 or config.complete_circles or config.filter_shading or config.filter_drawing_plane)
     if (with_maps or config.filter_silhouette) and (scene is None or detector is None):
         scene, detector = run_scene(run_dir, maps=with_maps)
     result = extract_primitives(primitives, config, scene, detector)
