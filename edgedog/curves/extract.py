@@ -61,7 +61,7 @@ def extract_curves(points: np.ndarray, directions: np.ndarray, config: ExtractCo
                                                  c.smoothing_iterations)
     vertices, axes = grouping.thin(smooth_points, smooth_dirs, c.node_spacing * size, min_cos)
     pairs, lengths = grouping.candidate_links(vertices, axes, c.link_distance * size, min_cos)
-    links = grouping.prune_spurs(grouping.spanning_links(pairs, lengths, len(vertices)), vertices,
+    links = grouping.prune_spurs(grouping.spanning_links(pairs, lengths, len(vertices)), len(vertices),
                                  c.min_chain_vertices)
     chains = grouping.chains_from_links(vertices, links, pairs)
     chains = topology.join_chains(chains, c.join_distance * size, min_cos)

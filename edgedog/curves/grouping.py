@@ -155,49 +155,15 @@ def spanning_links(pairs: np.ndarray, lengths: np.ndarray, n: int) -> np.ndarray
     return np.stack([tree.row, tree.col], axis=1).astype(np.int64)
 
 
-def _heading(vertices: np.ndarray, chain: np.ndarray, junction: int, reach: int = 3) -> np.ndarray:
-    """Unit direction (3,) from the junction along a chain (vertex indices that start or end at
-    it) to its vertex `reach` links away, or its far end if nearer."""
-    order = chain if chain[0] == junction else chain[::-1]
-    step = vertices[order[min(reach, len(order) - 1)]] - vertices[junction]
-    return step / max(np.linalg.norm(step), 1e-18)
-
-
-def prune_spurs(edges: np.ndarray, vertices: np.ndarray, min_vertices: int) -> np.ndarray:
+def prune_spurs(edges: np.ndarray, n: int, min_vertices: int) -> np.ndarray:
     """Remove side branches shorter than `min_vertices` links (from a leaf to the junction it
-    hangs from) until none is left; returns the remaining links (E', 2) of the forest over
-    `vertices` (K, 3).
-
-    A junction keeps a path through it: at the end of a curve, where the tube of points frays
-    into short twigs beside the one long branch, the twig that best continues that branch is
-    kept (cutting them all would shorten the curve by a few vertices at each corner); where
-    every branch is short (a short edge whose few vertices the forest joined as a star), the two
-    longest are kept instead of erasing the edge.
-    """
-    n = len(vertices)
+    hangs from) until none is left; returns the remaining links (E', 2)."""
     while True:
         degree = np.bincount(edges.ravel(), minlength=n)
-        spurs_at: dict[int, list[np.ndarray]] = {}
-        long_at: dict[int, list[np.ndarray]] = {}
+        drop = set()
         for chain in chain_edges(edges, n):
             ends = degree[chain[[0, -1]]]
             if len(chain) - 1 < min_vertices and min(ends) == 1 and max(ends) >= 3:
-                spurs_at.setdefault(int(chain[0] if ends[0] >= 3 else chain[-1]), []).append(chain)
-                continue
-            for end in {int(chain[0]), int(chain[-1])}:
-                if degree[end] >= 3:
-                    long_at.setdefault(end, []).append(chain)
-        drop = set()
-        for junction, spurs in spurs_at.items():
-            others = long_at.get(junction, [])
-            if len(others) == 1:
-                ahead = -_heading(vertices, others[0], junction)
-                kept = max(range(len(spurs)), key=lambda i: (_heading(vertices, spurs[i], junction) @ ahead,
-                                                             len(spurs[i])))
-                spurs = spurs[:kept] + spurs[kept + 1:]
-            elif not others:
-                spurs = sorted(spurs, key=len)[:-2]  # stable: the forest's order breaks ties
-            for chain in spurs:
                 drop.update(tuple(sorted(pair)) for pair in zip(chain[:-1].tolist(), chain[1:].tolist()))
         if not drop:
             return edges
