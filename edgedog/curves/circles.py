@@ -181,12 +181,13 @@ def offset_scores(circle: Circle, evidence: Evidence, offsets: np.ndarray,
     drawing = np.zeros(shape, np.int64)
     outside = np.zeros(len(offsets), bool)
     for view, view_map in zip(evidence.views, maps):
-        pixels, inside = view.camera.pixels(flat)
+        uv, depth = view.camera.project(flat)
+        pixels, inside = view.camera.nearest_pixels(uv, depth)
         whole = inside.reshape(shape).all(axis=1)
         x = np.where(inside, pixels[:, 0], 0).reshape(shape)
         y = np.where(inside, pixels[:, 1], 0).reshape(shape)
         outside |= whole & ((~view.hull[y, x]).mean(axis=1) > OUTSIDE_SHARE)
-        uv = np.nan_to_num(view.camera.project(flat)[0]).reshape(*shape, 2)
+        uv = np.nan_to_num(uv).reshape(*shape, 2)
         tangent = np.roll(uv, -1, axis=1) - np.roll(uv, 1, axis=1)  # the ring is closed
         direction = np.degrees(np.arctan2(tangent[..., 1], tangent[..., 0])) % 180.0
         turn = np.abs(direction - view_map.ridge[y, x])
@@ -218,9 +219,10 @@ def _vertex(value: np.ndarray, index: int) -> float:
     return 0.0 if curvature >= 0 else float(np.clip(0.5 * (left - right) / curvature, -0.5, 0.5))
 
 
-def _away(points: np.ndarray, others: np.ndarray, radius: float) -> bool:
-    """Whether most of points (M, 3) lie farther than `radius` from every one of others (N, 3)."""
-    return not len(others) or np.mean(cKDTree(others).query(points)[0] > radius) >= 0.5
+def _away(points: np.ndarray, others: cKDTree | None, radius: float) -> bool:
+    """Whether most of points (M, 3) lie farther than `radius` from every point of `others` (a
+    tree of them; None: there are none)."""
+    return others is None or np.mean(others.query(points)[0] > radius) >= 0.5
 
 
 def complete_circles(circles: list[Circle], evidence: Evidence, size: float,
@@ -233,7 +235,9 @@ def complete_circles(circles: list[Circle], evidence: Evidence, size: float,
     reach = round(config.circle_reach / STEP)
     offsets = np.arange(-reach, reach + 1) * step
     maps = [view_maps(view.edge_map) for view in evidence.views] if circles else []
+    existing = cKDTree(evidence.existing) if len(evidence.existing) else None
     added: list[Circle] = []
+    earlier: cKDTree | None = None  # the points of the circles added
     for circle in circles:
         scores = offset_scores(circle, evidence, offsets, maps)
         value = np.where(scores.outside, 0.0, scores.value)
@@ -241,8 +245,8 @@ def complete_circles(circles: list[Circle], evidence: Evidence, size: float,
         for index in _peaks(value):
             found = circle.moved(offsets[index] + _vertex(value, index) * step)
             points = found.points()
-            earlier = np.concatenate([c.points() for c in added]) if added else np.empty((0, 3))
-            if (strong[index] and _away(points, evidence.existing, NOVELTY * size)
+            if (strong[index] and _away(points, existing, NOVELTY * size)
                     and _away(points, earlier, 2 * NOVELTY * size)):
                 added.append(found)
+                earlier = cKDTree(np.concatenate([c.points() for c in added]))
     return np.concatenate([c.beziers() for c in added]) if added else np.empty((0, 4, 3))

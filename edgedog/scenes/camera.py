@@ -91,7 +91,11 @@ class Camera:
             pixels: (N, 2) int64 (x, y), meaningful where `inside`;
             inside: (N,) bool, in front of the camera and within the image.
         """
-        uv, depth = self.project(points)
+        return self.nearest_pixels(*self.project(points))
+
+    def nearest_pixels(self, uv: np.ndarray, depth: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """`pixels` of points already projected: uv (N, 2) and depth (N,) as `project` gives them,
+        for a caller that also needs the sub-pixel positions."""
         pixels = np.rint(np.nan_to_num(uv, nan=-1.0, posinf=-1.0, neginf=-1.0)).astype(np.int64)
         inside = (depth > 0) & (pixels[:, 0] >= 0) & (pixels[:, 0] < self.width) \
             & (pixels[:, 1] >= 0) & (pixels[:, 1] < self.height)
