@@ -11,19 +11,13 @@ import pytest
 
 from edgedog.builtin.writer import write_scene
 from edgedog.curve_files import EdgeCurves
-from edgedog.curves.circles import (
-    Circle,
-    complete_circles,
-    fit_circle,
-    found_circles,
-    offset_scores,
-    view_maps,
-)
+from edgedog.curves.circles import Circle, complete_circles, fit_circle, found_circles
 from edgedog.curves.completion import Evidence, ViewEvidence, gather_evidence
 from edgedog.curves.config import ExtractConfig
 from edgedog.curves.contours import HullSurface
 from edgedog.curves.extract import scene_size
 from edgedog.curves.grouping import Chain
+from edgedog.curves.sweep import offset_scores, view_maps
 from edgedog.metrics import sample_cubic_bezier
 from edgedog.scenes import load_scene
 from edgedog.synthetic.cameras import TARGET, orbit_cameras
@@ -119,7 +113,10 @@ def blind_hole(tmp_path_factory):
 def _complete(scene, curves: EdgeCurves, axes: list[Circle], size: float) -> np.ndarray:
     config = ExtractConfig(contour_hull_cells=64)
     evidence = gather_evidence(curves, HullSurface(scene, config.contour_hull_cells), "exact", size, config)
-    return np.empty((0, 4, 3)) if evidence is None else complete_circles(axes, evidence, size, config)
+    if evidence is None:
+        return np.empty((0, 4, 3))
+    maps = [view_maps(view.edge_map) for view in evidence.views]
+    return complete_circles(axes, evidence, maps, size, config)
 
 
 def test_the_blind_holes_floor_comes_back_from_its_rim_and_nothing_else(blind_hole):

@@ -191,6 +191,21 @@ class ExtractConfig(Settings):
     circles found scored 0.81-1.0 and 0.61-0.91, and no circle off the edges both over 0.77 and
     0.48."""
 
+    complete_slides: bool = False
+    """Add the straight edges the curves miss that are copies of a fitted line moved across
+    itself along a direction the part's lines run in (a pocket's floor under its rim, a channel's
+    concave corners under its walls' top edges), found where the edge maps draw them and no curve
+    explains it (`edgedog.curves.slides`). Skipped on scenes without masks."""
+    slide_reach: SceneLength = 0.3
+    """How far, either way, a line is moved in search of a copy."""
+    slide_cover: Share = 0.8
+    """An added line has this share of its points drawn by the views."""
+    slide_views_cover: Share = 0.6
+    """... and this share drawn by two views or more."""
+    slide_views: Annotated[float, Range(0, 1000)] = 2.0
+    """... and the views' edge values summed at each of its points, averaged along it, at least
+    this: as much as this many views drawing all of it at full strength."""
+
     # --- directions
     min_elongation: Annotated[float, Range(1)] = 1.5
     """A primitive's own axis (largest scale) is its direction when largest / middle scale is at

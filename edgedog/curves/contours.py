@@ -18,6 +18,7 @@ from functools import cached_property
 
 import cv2
 import numpy as np
+import torch
 from scipy.ndimage import distance_transform_edt, gaussian_filter, map_coordinates
 
 from edgedog.hull import HullGrid, carve, readable_mask
@@ -28,6 +29,11 @@ DRAWN_VALUE = 0.3
 diagnosis counts the views that draw a curve by the same value."""
 COARSE_CELLS = 64
 """Cells per side of the first hull, over the scene's bounds, which finds the object's box."""
+CLEAR_SKIP = 2.5
+"""Cells from a point on which `HullSurface.unblocked` looks for the hull: the hull's surface lies
+within a cell or so of the object's, so the cells around a point on the object are the hull's."""
+CLEAR_BLOCK = 64
+"""Steps marched at once by `HullSurface.unblocked`."""
 
 
 def scene_hull(scene: Scene, masks: list[np.ndarray | None], cells: int) -> HullGrid | None:
@@ -90,6 +96,22 @@ class HullSurface:
     def signed(self) -> np.ndarray:
         """(R, R, R) `signed_distance` of the grid (which must exist)."""
         return signed_distance(self.grid)
+
+    def unblocked(self, points: np.ndarray, centres: np.ndarray, skip: float = CLEAR_SKIP) -> np.ndarray:
+        """(N, V) bool: whether the segment from each point (N, 3) to each camera centre (V, 3)
+        meets no cell of the hull from `skip` cells on (a view that surely sees the point, if
+        the point is on the object: the hull holds the object). Marched half a cell at a time to
+        the grid's far side; memory O(N V R). The hull's grid must exist."""
+        grid = self.grid
+        towards = centres[None] - points[:, None]
+        towards /= np.maximum(np.linalg.norm(towards, axis=2, keepdims=True), 1e-12)
+        steps = np.arange(skip, grid.resolution * np.sqrt(3.0), 0.5) * grid.cell
+        blocked = np.zeros(towards.shape[:2], bool)
+        for start in range(0, len(steps), CLEAR_BLOCK):
+            block = steps[start:start + CLEAR_BLOCK]
+            along = points[:, None, None] + towards[:, :, None] * block[None, None, :, None]
+            blocked |= grid.lookup(torch.from_numpy(along)).numpy().any(axis=2)
+        return ~blocked
 
     def normals(self, points: np.ndarray, probe: float = 0.0) -> np.ndarray:
         """(N, K, 3) unit outward normals of the hull's surface around each point (N, 3): at the

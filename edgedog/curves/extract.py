@@ -20,6 +20,8 @@ from edgedog.curves import (
     grouping,
     junctions,
     shading,
+    slides,
+    sweep,
     topology,
 )
 from edgedog.curves.config import ExtractConfig
@@ -234,22 +236,30 @@ def extract_primitives(primitives: EdgePrimitives, config: ExtractConfig = Extra
             counts["drawing_plane_dropped"] = int(flat.sum())
             keep &= ~flat
         curves = fitted.kept(keep)
-    if (config.complete_lines or config.complete_circles) and scene is not None and detector is not None:
+    completing = config.complete_lines or config.complete_circles or config.complete_slides
+    if completing and scene is not None and detector is not None:
         # What the maps draw along the curves the shading test dropped (contours) stays explained.
         size = scene_size(points.points)
         evidence = completion.gather_evidence(fitted, surface, detector, size, config)
-        lines, arcs = np.empty((0, 2, 3)), np.empty((0, 4, 3))
+        lines, arcs, slid = np.empty((0, 2, 3)), np.empty((0, 4, 3)), np.empty((0, 2, 3))
         if evidence is not None and config.complete_lines:
             lines = completion.complete_lines(evidence, surface, detector, size, config)
-        if evidence is not None and config.complete_circles:
+        searching = evidence is not None and (config.complete_circles or config.complete_slides)
+        maps = [sweep.view_maps(view.edge_map) for view in evidence.views] if searching else []
+        if searching and config.complete_circles:
             axes = circles.found_circles(chains, config.bezier_tolerance * size, size)
-            arcs = circles.complete_circles(axes, evidence, size, config)
-        curves = EdgeCurves(lines=np.concatenate([curves.lines, lines]),
+            arcs = circles.complete_circles(axes, evidence, maps, size, config)
+        if searching and config.complete_slides:
+            slid = slides.complete_slides(np.concatenate([curves.lines, lines]), evidence, maps, surface,
+                                          detector, size, config)
+        curves = EdgeCurves(lines=np.concatenate([curves.lines, lines, slid]),
                             beziers=np.concatenate([curves.beziers, arcs]))
         if config.complete_lines:
             counts["completed_lines"] = len(lines)
         if config.complete_circles:
             counts["completed_circles"] = len(arcs) // 4
+        if config.complete_slides:
+            counts["completed_slides"] = len(slid)
     return RunExtraction(curves, points, directions, counts)
 
 
@@ -271,7 +281,8 @@ def extract_run(run_dir: str | Path, config: ExtractConfig = ExtractConfig(), sc
     if layers is not None:
         primitives = primitives.in_layers(layers)
     with_maps = (config.filter_projection or config.filter_contours or config.complete_lines
-                 or config.complete_circles or config.filter_shading or config.filter_drawing_plane)
+                 or config.complete_circles or config.complete_slides or config.filter_shading
+                 or config.filter_drawing_plane)
     if (with_maps or config.filter_silhouette) and (scene is None or detector is None):
         scene, detector = run_scene(run_dir, maps=with_maps)
     result = extract_primitives(primitives, config, scene, detector)
