@@ -58,7 +58,7 @@ def _circle_of(curve) -> Circle:
 def pocket(tmp_path_factory):
     """The pocket design's scene, 50 views at 800 px with exact maps; the curves without the
     pocket's concave lines (its floor and its corners, which no primitive forms on), every
-    curve, the floor's lines, and the size."""
+    curve, the floor's lines, the corners' lines, and the size."""
     part = family_part(POCKET_DESIGN)
     folder = tmp_path_factory.mktemp("slides") / "pocket"
     scene = load_scene(write_scene(folder, part, views=50, size=800, detector="exact"))
@@ -66,11 +66,12 @@ def pocket(tmp_path_factory):
     rim = max(max(c.a[2], c.b[2]) for c in lines)
     floor = np.array([[c.a, c.b] for c in lines
                       if c.dihedral == "concave" and abs(c.a[2] - c.b[2]) < 1e-6 and c.a[2] < rim - 1e-3])
+    corners = np.array([[c.a, c.b] for c in lines if c.dihedral == "concave" and abs(c.a[2] - c.b[2]) > 1e-3])
     beziers = np.concatenate([_circle_of(c).beziers() for c in part.curves if c.type == "circle"])
     others = EdgeCurves(lines=[[c.a, c.b] for c in lines if c.dihedral != "concave"], beziers=beziers)
     every = EdgeCurves(lines=[[c.a, c.b] for c in lines], beziers=beziers)
     size = scene_size(np.concatenate([sample_curve(c) for c in part.curves]))
-    return scene, others, every, floor, size
+    return scene, others, every, floor, corners, size
 
 
 def _complete(scene, curves: EdgeCurves, size: float) -> np.ndarray:
@@ -95,22 +96,24 @@ def _distance(lines: np.ndarray, to: np.ndarray) -> np.ndarray:
 
 
 def test_the_pockets_floor_comes_back_from_its_rim(pocket):
-    scene, others, every, floor, size = pocket
+    scene, others, every, floor, corners, size = pocket
     added = _complete(scene, others, size)
     assert len(floor) == 4
     # Three of the four: the fourth, under the wall that the views looking into the pocket face
     # least, is drawn by two views or more on half of it only (slide_views_cover).
     assert (_distance(floor, added) < 0.005 * size).sum() >= 3
+    # The lines joining the rim's ends to the floor's ends: two of the pocket's corners.
+    assert len(corners) == 4 and (_distance(corners, added) < 0.005 * size).sum() >= 2
     assert (_distance(added, every.lines) < 0.005 * size).all()  # and nothing off the edges
 
 
 def test_nothing_is_added_where_every_line_is_found(pocket):
-    scene, others, every, floor, size = pocket
+    scene, others, every, floor, corners, size = pocket
     assert _complete(scene, every, size).shape == (0, 2, 3)
 
 
 def test_empty_edge_maps_add_no_line(pocket, monkeypatch):
-    scene, others, every, floor, size = pocket
+    scene, others, every, floor, corners, size = pocket
     blank = np.zeros((scene.camera(0).height, scene.camera(0).width), np.float32)
     monkeypatch.setattr(scene, "load_edge_map", lambda index, detector=None: blank)
     assert _complete(scene, others, size).shape == (0, 2, 3)
@@ -120,7 +123,7 @@ def test_a_line_in_the_pockets_opening_is_seen_and_left_undrawn(pocket):
     """Halfway across the pocket's opening, level with the rim: the views from above see it clear
     of the hull and draw nothing there. The floor under it is inside the hull: no view surely
     sees it, so nothing speaks against it."""
-    scene, others, every, floor, size = pocket
+    scene, others, every, floor, corners, size = pocket
     config = ExtractConfig(contour_hull_cells=64)
     surface = HullSurface(scene, config.contour_hull_cells)
     evidence = gather_evidence(others, surface, "exact", size, config)
@@ -130,6 +133,22 @@ def test_a_line_in_the_pockets_opening_is_seen_and_left_undrawn(pocket):
     opening = (rim + opposite) / 2 + lift
     assert seen_undrawn(opening, evidence, surface)
     assert not seen_undrawn(rim, evidence, surface)
+
+
+def test_curves_a_completion_added_explain_their_pixels(pocket):
+    scene, others, every, floor, corners, size = pocket
+    config = ExtractConfig(contour_hull_cells=64)
+    evidence = gather_evidence(others, HullSurface(scene, config.contour_hull_cells), "exact", size, config)
+    points = np.linspace(floor[0][0], floor[0][1], 200)
+    found = evidence.explained_by(points, config.completion_explained)
+    assert len(found.existing) == len(evidence.existing) + len(points)
+    before = after = 0
+    for view, now in zip(evidence.views, found.views):
+        pixels, inside = view.camera.pixels(points)
+        before += view.unexplained[pixels[inside, 1], pixels[inside, 0]].sum()
+        after += now.unexplained[pixels[inside, 1], pixels[inside, 0]].sum()
+        assert not (now.unexplained & ~view.unexplained).any()  # nothing becomes unexplained
+    assert before > 0 and after == 0
 
 
 def test_a_line_is_drawn_on_its_maps_ridge_and_not_beside_it():

@@ -26,6 +26,7 @@ get nothing: the hull test is what keeps floaters out.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import cv2
@@ -275,6 +276,21 @@ class Evidence:
 
     views: list[ViewEvidence]
     existing: np.ndarray
+
+    def explained_by(self, points: np.ndarray, explained_pixels: int) -> Evidence:
+        """This evidence with the curves sampled densely by `points` (M, 3) (those a completion
+        added) found too: the drawn pixels within `explained_pixels` of their projection are
+        theirs, and they join `existing`."""
+        if not len(points):
+            return self
+        views = []
+        for view in self.views:
+            explained = np.zeros(view.unexplained.shape, bool)
+            pixels, inside = view.camera.pixels(points)
+            explained[pixels[inside, 1], pixels[inside, 0]] = True
+            unexplained = view.unexplained & ~_dilate(explained, explained_pixels + 1, cv2.MORPH_ELLIPSE)
+            views.append(dataclasses.replace(view, unexplained=unexplained))
+        return Evidence(views, np.concatenate([self.existing, points]))
 
 
 def gather_evidence(curves: EdgeCurves, surface: HullSurface, detector: str, size: float,

@@ -93,6 +93,17 @@ class HullSurface:
         return scene_hull(self.scene, self.masks, self.cells)
 
     @cached_property
+    def box(self) -> np.ndarray:
+        """(2, 3) the lowest and highest corners of the hull's occupied cells (the grid's cube
+        where none is occupied). The grid must exist."""
+        grid = self.grid
+        occupied = np.argwhere(grid.occupied.numpy())
+        if not len(occupied):
+            return np.stack([grid.origin, grid.origin + grid.resolution * grid.cell])
+        return np.stack([grid.origin + occupied.min(axis=0) * grid.cell,
+                         grid.origin + (occupied.max(axis=0) + 1) * grid.cell])
+
+    @cached_property
     def signed(self) -> np.ndarray:
         """(R, R, R) `signed_distance` of the grid (which must exist)."""
         return signed_distance(self.grid)

@@ -250,8 +250,10 @@ def extract_primitives(primitives: EdgePrimitives, config: ExtractConfig = Extra
             axes = circles.found_circles(chains, config.bezier_tolerance * size, size)
             arcs = circles.complete_circles(axes, evidence, maps, size, config)
         if searching and config.complete_slides:
-            slid = slides.complete_slides(np.concatenate([curves.lines, lines]), evidence, maps, surface,
-                                          detector, size, config)
+            # What the other completions added is found: its pixels are explained, no copy rests on it.
+            found = evidence.explained_by(EdgeCurves(lines=lines, beziers=arcs).sample(size / 1000),
+                                          config.completion_explained)
+            slid = slides.complete_slides(curves.lines, found, maps, surface, detector, size, config)
         curves = EdgeCurves(lines=np.concatenate([curves.lines, lines, slid]),
                             beziers=np.concatenate([curves.beziers, arcs]))
         if config.complete_lines:

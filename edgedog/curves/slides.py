@@ -9,19 +9,27 @@ but the views that look into the pocket draw them. Each fitted line at least `MI
 moved along each direction of the fitted lines (`line_directions`) nearly perpendicular to it, in
 steps of `sweep.STEP` of the scene size up to `slide_reach` either way, and each position is
 scored by what the maps draw there that no curve explains (`sweep.offset_scores`: each view
-counting only where it looks across the plane the line sweeps). A peak of that score is a line
-when, there:
+counting only where it looks across the plane the line sweeps). A peak of that score is a
+candidate where:
 
 - it lies inside every view's widened mask (the visual hull), all but `sweep.OUTSIDE_SHARE` of it;
 - `slide_cover` of its points are drawn, `slide_views_cover` of them by two views or more (one
   view's line fits the plane's line at any depth along its rays; two views' agree at one), and
-  the views' edge values there add up to `slide_views` views drawing all of it;
-- moved onto the least-squares line of the ridges that the views drawing it draw along it
-  (`completion.refine`: the found line's own error is carried along the slide), it is not
-  seen and left undrawn (`seen_undrawn`): where the visual hull leaves a view's line of sight
-  clear, a view surely sees the line if the line is on the object, and a true edge is drawn
-  there; a false copy (where views looking into a pocket each draw another of its edges through
-  the pocket's opening) floats in the open, and most of the views that see it draw nothing;
+  the views' edge values there add up to `slide_views` views drawing all of it.
+
+The candidate is placed where the maps themselves peak around it (`sweep.placed`: the thick
+lines of the maps make the score a plateau), then moved onto the least-squares line of the
+ridges the views drawing it draw along it (`completion.refine`: the found line's own error is
+carried along the slide). It is a line when, there:
+
+- `MIN_DRAWING` views draw it over `completion_cover` of its length among the pixels no curve
+  explains;
+- it is not seen and left undrawn (`seen_undrawn`): where the visual hull leaves a view's line
+  of sight clear, a view surely sees the line if the line is on the object, and a true edge is
+  drawn there; a false copy (where views looking into a pocket each draw another of its edges
+  through the pocket's opening) floats in the open, and most of the views that see it draw
+  nothing;
+- it is no occluding contour (the line completion's test);
 - most of it lies away from the curves, and from the lines added before it.
 
 A copy of another length (a pocket's vertical corner under a block's vertical edge) is not
@@ -40,10 +48,20 @@ from edgedog.curves.completion import NOVELTY, Evidence, ViewEvidence
 from edgedog.curves.config import ExtractConfig
 from edgedog.curves.contours import DRAWN_VALUE, HullSurface, contour_mask
 
-MIN_LENGTH = 0.03
-"""Shortest fitted line that is slid or gives a direction, of the scene size."""
+MIN_LENGTH = 0.05
+"""Shortest fitted line that is slid or gives a direction, of the scene size: a shorter one's
+direction is too uncertain to carry a copy far (on 11 CAD runs, the copies of lines 0.03 to 0.04
+long lay 11 to 18 mm from any edge)."""
+MIN_DRAWING = 2
+"""Fewest views that draw a copy over `completion_cover` of its length among the pixels no curve
+explains (`completion.support`), before and after it is refined: the summed score of the search
+also adds views that each draw a part (on 11 CAD runs every copy on an edge had two such views;
+most of those 10 mm or more off an edge had none or one)."""
 SAMPLES = 32
 """Points along a line where the views are read."""
+SEARCH_STEP = 2
+"""The search moves a line by this many `sweep.STEP`s at a time: the score's plateaus are wider
+(`PLACE_STEPS`), and the copy is then placed at single steps."""
 PLACE_STEPS = 15
 """Steps either way of a peak of the score within which a copy is placed (`sweep.placed`): the
 thick lines of the maps make the score a plateau of offsets up to about this wide."""
@@ -97,6 +115,11 @@ class SlidLine:
     def moved(self, offset: float) -> np.ndarray:
         """(2, 3) the ends moved by `offset` along the slide."""
         return self.ends + offset * self.slide
+
+    def within(self, offsets: np.ndarray, box: np.ndarray) -> np.ndarray:
+        """The `offsets` (T,) by which the line moved stays in `box` (2, 3), both ends."""
+        moved = self.ends[None] + offsets[:, None, None] * self.slide  # (T, 2, 3)
+        return offsets[np.all((moved >= box[0]) & (moved <= box[1]), axis=(1, 2))]
 
 
 def _unit_directions(lines: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -199,16 +222,41 @@ def _contour(points: np.ndarray, surface: HullSurface, detector: str, config: Ex
 def complete_slides(lines: np.ndarray, evidence: Evidence, maps: list[sweep.ViewMaps], surface: HullSurface,
                     detector: str, size: float, config: ExtractConfig) -> np.ndarray:
     """(L, 2, 3) the lines the curves of `evidence` miss that are copies of `lines` (L, 2, 3)
-    moved across themselves (see the module's doc), with `config`'s `slide_*` settings; `maps`
-    are the views' `sweep.view_maps`, `surface` the scene's hull, `detector` its edge maps' name
-    (for the contour test), `size` the scene size the relative lengths refer to."""
+    moved across themselves (see the module's doc), with `config`'s `slide_*` settings, and the
+    lines joining a copy's ends to its line's (a pocket's corners, between its rim and its
+    floor) where they pass the same tests; `maps` are the views' `sweep.view_maps`, `surface` the
+    scene's hull, `detector` its edge maps' name (for the contour test), `size` the scene size
+    the relative lengths refer to."""
     step = sweep.STEP * size
     reach = round(config.slide_reach / sweep.STEP)
-    offsets = np.arange(-reach, reach + 1) * step
+    steps = np.arange(-reach, reach + 1) * step
+    box = surface.box
     existing = cKDTree(evidence.existing) if len(evidence.existing) else None
     added: list[np.ndarray] = []
     earlier: cKDTree | None = None  # the points of the lines added
+
+    def drawn(segment: np.ndarray) -> np.ndarray:
+        """(V,) the views that draw `segment` among the unexplained pixels."""
+        return completion.support(evidence.views, completion.samples_along(segment[None]), True,
+                                  config.completion_cover)[0][0]
+
+    def add(segment: np.ndarray) -> bool:
+        """Add `segment` (2, 3) where it is drawn, new, and neither seen undrawn nor a contour."""
+        nonlocal earlier
+        points = completion.samples_along(segment[None])[0]
+        if not (drawn(segment).sum() >= MIN_DRAWING and sweep.away(points, existing, NOVELTY * size)
+                and sweep.away(points, earlier, 2 * NOVELTY * size)):
+            return False
+        if seen_undrawn(segment, evidence, surface) or _contour(points, surface, detector, config):
+            return False
+        added.append(segment)
+        earlier = cKDTree(completion.samples_along(np.asarray(added)).reshape(-1, 3))
+        return True
+
     for line in slides(lines, size):
+        offsets = line.within(steps[::SEARCH_STEP], box)
+        if len(offsets) < 3:
+            continue
         scores = sweep.offset_scores(line, evidence, offsets, maps)
         value = np.where(scores.outside, 0.0, scores.value)
         strong = ((scores.cover >= config.slide_cover) & (scores.cover_two >= config.slide_views_cover)
@@ -216,16 +264,13 @@ def complete_slides(lines: np.ndarray, evidence: Evidence, maps: list[sweep.View
         for index in sweep.peaks(value):
             if not strong[index]:
                 continue
-            window = offsets[max(index - PLACE_STEPS, 0):index + PLACE_STEPS + 1]
+            window = offsets[index] + np.arange(-PLACE_STEPS, PLACE_STEPS + 1) * step
             found = line.moved(sweep.placed(line, evidence, window, maps))
-            drawing, _ = completion.support(evidence.views, completion.samples_along(found[None]), True,
-                                            config.completion_cover)
-            found = completion.refine(evidence.views, found, drawing[0])
-            points = completion.samples_along(found[None])[0]
-            if not (sweep.away(points, existing, NOVELTY * size)
-                    and sweep.away(points, earlier, 2 * NOVELTY * size)):
+            drawing = drawn(found)
+            if drawing.sum() < MIN_DRAWING:
                 continue
-            if not seen_undrawn(found, evidence, surface) and not _contour(points, surface, detector, config):
-                added.append(found)
-                earlier = cKDTree(completion.samples_along(np.asarray(added)).reshape(-1, 3))
+            found = completion.refine(evidence.views, found, drawing)
+            if add(found):
+                for end in range(2):
+                    add(np.stack([line.ends[end], found[end]]))
     return np.asarray(added).reshape(-1, 2, 3)
