@@ -8,7 +8,8 @@ Those few views still draw them. A circle fitted to a chain of the curves (`foun
 moved along its axis in steps of `sweep.STEP` of the scene size, up to `circle_reach` either
 way, and each position is scored by what the maps draw there that no curve explains
 (`sweep.offset_scores`: each view counting only where it looks across the cylinder through the
-circle). A peak of that score is a circle when, there:
+circle). A peak of that score, placed where the maps themselves peak around it (`sweep.placed`:
+the maps' thick lines make the score a plateau along the axis), is a circle when, there:
 
 - it lies inside every view's widened mask (the visual hull), all but `sweep.OUTSIDE_SHARE` of it;
 - `circle_cover` of its points are drawn (their summed edge value over the views at least
@@ -135,7 +136,8 @@ def complete_circles(circles: list[Circle], evidence: Evidence, maps: list[sweep
         value = np.where(scores.outside, 0.0, scores.value)
         strong = (scores.cover >= config.circle_cover) & (scores.cover_two >= config.circle_views_cover)
         for index in sweep.peaks(value):
-            found = circle.moved(offsets[index] + sweep.vertex(value, index) * step)
+            window = offsets[index] + np.arange(-sweep.PLACE_STEPS, sweep.PLACE_STEPS + 1) * step
+            found = circle.moved(sweep.placed(circle, evidence, window, maps))
             points = found.points()
             if (strong[index] and sweep.away(points, existing, NOVELTY * size)
                     and sweep.away(points, earlier, 2 * NOVELTY * size)):

@@ -61,10 +61,7 @@ SAMPLES = 32
 """Points along a line where the views are read."""
 SEARCH_STEP = 2
 """The search moves a line by this many `sweep.STEP`s at a time: the score's plateaus are wider
-(`PLACE_STEPS`), and the copy is then placed at single steps."""
-PLACE_STEPS = 15
-"""Steps either way of a peak of the score within which a copy is placed (`sweep.placed`): the
-thick lines of the maps make the score a plateau of offsets up to about this wide."""
+(`sweep.PLACE_STEPS`), and the copy is then placed at single steps."""
 SAME_DIRECTION = 5.0
 """Degrees: fitted lines this close in direction share one (`line_directions`)."""
 MAX_DIRECTIONS = 6
@@ -264,7 +261,7 @@ def complete_slides(lines: np.ndarray, evidence: Evidence, maps: list[sweep.View
         for index in sweep.peaks(value):
             if not strong[index]:
                 continue
-            window = offsets[index] + np.arange(-PLACE_STEPS, PLACE_STEPS + 1) * step
+            window = offsets[index] + np.arange(-sweep.PLACE_STEPS, sweep.PLACE_STEPS + 1) * step
             found = line.moved(sweep.placed(line, evidence, window, maps))
             drawing = drawn(found)
             if drawing.sum() < MIN_DRAWING:

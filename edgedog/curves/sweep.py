@@ -40,6 +40,9 @@ the curve's projection. A cylinder's contour is a band across the flat ellipses 
 on it that low views see; its line runs along the axis, not along them."""
 RIDGE_WINDOW = 7
 """Pixels: the window of the structure tensor that gives the direction of the maps' lines."""
+PLACE_STEPS = 15
+"""Steps either way of a peak of the score within which a copy is placed (`placed`): the thick
+lines of the maps make the score a plateau of offsets up to about this wide."""
 OUTSIDE_SHARE = 0.1
 """A moved curve is off the object where more of its points than this fall outside one view's
 widened mask (a circle that another hole cuts is partly over the void)."""
@@ -147,7 +150,8 @@ def offset_scores(curve: Swept, evidence: Evidence, offsets: np.ndarray, maps: l
 def placed(curve: Swept, evidence: Evidence, offsets: np.ndarray, maps: list[ViewMaps]) -> float:
     """The offset among `offsets` (T,), a window around a peak of the (plateau) score, where the
     views' maps themselves peak (`offset_scores` with `sharp`), refined between steps: the
-    middle of the thick lines the views draw, not the first step at which they all overlap."""
+    middle of the thick lines the views draw, not the step at which the score happens to peak
+    on its plateau (a circle's copy landed 2 to 10 mm off a floor that way)."""
     value = offset_scores(curve, evidence, offsets, maps, sharp=True).value
     index = int(np.argmax(value))
     if 0 < index < len(offsets) - 1:
