@@ -59,6 +59,10 @@ also adds views that each draw a part (on 11 CAD runs every copy on an edge had 
 most of those 10 mm or more off an edge had none or one)."""
 SAMPLES = 32
 """Points along a line where the views are read."""
+AWAY = 2.0
+"""A copy is new where most of it lies farther than this many `completion.NOVELTY` from the curves
+and the lines added before it: the maps' thick lines also draw a band's far flank beside a found
+edge (on ABC 00000006, copies 10 mm beside found edges, drawn by most views that see them)."""
 SEARCH_STEP = 2
 """The search moves a line by this many `sweep.STEP`s at a time: the score's plateaus are wider
 (`sweep.PLACE_STEPS`), and the copy is then placed at single steps."""
@@ -241,8 +245,8 @@ def complete_slides(lines: np.ndarray, evidence: Evidence, maps: list[sweep.View
         """Add `segment` (2, 3) where it is drawn, new, and neither seen undrawn nor a contour."""
         nonlocal earlier
         points = completion.samples_along(segment[None])[0]
-        if not (drawn(segment).sum() >= MIN_DRAWING and sweep.away(points, existing, NOVELTY * size)
-                and sweep.away(points, earlier, 2 * NOVELTY * size)):
+        if not (drawn(segment).sum() >= MIN_DRAWING and sweep.away(points, existing, AWAY * NOVELTY * size)
+                and sweep.away(points, earlier, AWAY * NOVELTY * size)):
             return False
         if seen_undrawn(segment, evidence, surface) or _contour(points, surface, detector, config):
             return False
