@@ -484,7 +484,8 @@ def test_extract_run_with_nothing_left_writes_empty_files(tmp_path):
     write_primitives(tmp_path / "primitives.ply", points, tangents, 0.1)
     result = extract_run(tmp_path, ExtractConfig(filter_projection=False, filter_silhouette=False,
                                                  filter_contours=False, complete_lines=False,
-                                                 complete_circles=False, filter_drawing_plane=False))
+                                                 complete_circles=False, complete_slides=False,
+                                                 filter_drawing_plane=False))
     assert result.counts["after_opacity"] == 0 and result.curves.num_curves == 0
     for name in ("curves.json", "curves.obj", "curves.ply", "edge_points.ply"):
         assert read_edges(tmp_path / name).is_empty
@@ -498,12 +499,13 @@ def test_the_silhouette_filter_alone_needs_no_edge_maps(builtin_scene_dir, tmp_p
     log = {"scene": str(builtin_scene_dir), "detector": "no-such-maps"}
     (tmp_path / "log.json").write_text(json.dumps(log))
     without_maps = ExtractConfig(filter_projection=False, filter_contours=False, complete_lines=False,
-                                 complete_circles=False, filter_drawing_plane=False)
+                                 complete_circles=False, complete_slides=False, filter_drawing_plane=False)
     result = extract_run(tmp_path, without_maps)
     assert "after_silhouette" in result.counts
     for needs_maps in (ExtractConfig(), ExtractConfig(filter_projection=False),
                        dataclasses.replace(without_maps, complete_lines=True),
                        dataclasses.replace(without_maps, complete_circles=True),
+                       dataclasses.replace(without_maps, complete_slides=True),
                        dataclasses.replace(without_maps, filter_shading=True),
                        dataclasses.replace(without_maps, filter_drawing_plane=True)):
         with pytest.raises(ConfigError, match="no-such-maps"):

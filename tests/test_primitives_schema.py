@@ -140,7 +140,8 @@ def test_extraction_from_memory_equals_extraction_from_the_ply(tmp_path):
     write_ply(tmp_path / "primitives.ply", arrays)
     # nothing here needs a scene
     config = ExtractConfig(filter_projection=False, filter_silhouette=False, filter_contours=False,
-                           complete_lines=False, complete_circles=False, filter_drawing_plane=False)
+                           complete_lines=False, complete_circles=False, complete_slides=False,
+                           filter_drawing_plane=False)
     from_file = extract_run(tmp_path, config)
     in_memory = extract_primitives(EdgePrimitives.from_arrays(arrays), config)
     assert from_file.curves.num_curves >= 1 and from_file.counts["after_opacity"] < len(arrays)
