@@ -222,6 +222,33 @@ def spread(views: list[ViewEvidence], supported: np.ndarray) -> np.ndarray:
     return result
 
 
+@dataclass(frozen=True)
+class AcrossLine:
+    """What a view's map holds across the projection of points along a line: values, (S, 2 R + 1)
+    at whole pixels from -R to +R px across it (R = `RIDGE_REACH`, probes clipped to the image);
+    uv, (S, 2) the projected points; across, (2,) the unit image direction across the line;
+    inside, whether every probe fell inside the image and every point in front of the camera."""
+
+    values: np.ndarray
+    uv: np.ndarray
+    across: np.ndarray
+    inside: bool
+
+
+def across_line(view: ViewEvidence, points: np.ndarray) -> AcrossLine:
+    """`AcrossLine` of `view` for points (S, 3) along a line, the first and last its ends."""
+    camera = view.camera
+    uv, depth = camera.project(points)
+    along = uv[-1] - uv[0]
+    along /= max(np.linalg.norm(along), 1e-12)
+    across = np.array([-along[1], along[0]])
+    offsets = np.arange(-RIDGE_REACH, RIDGE_REACH + 1)
+    probes = np.rint(uv[:, None, :] + offsets[None, :, None] * across).astype(np.int64)
+    inside = bool(np.all(depth > 0) and ((probes >= 0) & (probes < [camera.width, camera.height])).all())
+    probes = np.clip(probes, 0, [camera.width - 1, camera.height - 1])
+    return AcrossLine(view.edge_map[probes[..., 1], probes[..., 0]], uv, across, inside)
+
+
 def refine(views: list[ViewEvidence], segment: np.ndarray, supported: np.ndarray) -> np.ndarray:
     """(2, 3) the line that best meets the planes of the ridges the supporting views draw along
     `segment` (2, 3) (least squares; its ends moved onto it), or `segment` where fewer than three
@@ -230,14 +257,9 @@ def refine(views: list[ViewEvidence], segment: np.ndarray, supported: np.ndarray
     offsets = np.arange(-RIDGE_REACH, RIDGE_REACH + 1)
     normals, centres = [], []
     for k in np.nonzero(supported)[0]:
-        camera, edge_map = views[k].camera, views[k].edge_map
-        uv, _ = camera.project(points)
-        along = uv[-1] - uv[0]
-        along /= max(np.linalg.norm(along), 1e-12)
-        across = np.array([-along[1], along[0]])
-        probes = np.rint(uv[:, None, :] + offsets[None, :, None] * across).astype(np.int64)
-        probes = np.clip(probes, 0, [camera.width - 1, camera.height - 1])
-        values = edge_map[probes[..., 1], probes[..., 0]]
+        camera = views[k].camera
+        line = across_line(views[k], points)
+        values, uv, across = line.values, line.uv, line.across
         weight = values.sum(axis=1)
         ridge = weight > 0.5
         if ridge.sum() < 5:
@@ -307,6 +329,18 @@ def gather_evidence(curves: EdgeCurves, surface: HullSurface, detector: str, siz
     return Evidence(views, existing)
 
 
+def on_contours(samples: np.ndarray, surface: HullSurface, detector: str,
+                config: ExtractConfig) -> np.ndarray:
+    """(C,) whether most of each line's samples (C, S, 3) lie on an occluding contour
+    (`contour_mask` at the stricter `completion_contour_share`: a ruled or cylindrical face's
+    contours are straight and drawn by many views); all False where the test cannot run."""
+    not_contour = contour_mask(samples.reshape(-1, 3), surface, detector, config.contour_max_cosine,
+                               config.completion_contour_share, config.contour_probe_cells)
+    if not_contour is None:
+        return np.zeros(len(samples), bool)
+    return not_contour.reshape(samples.shape[:2]).mean(axis=1) < 0.5
+
+
 def complete_lines(evidence: Evidence, surface: HullSurface, detector: str, size: float,
                    config: ExtractConfig) -> np.ndarray:
     """(L, 2, 3) straight edges the curves of `evidence` miss (see the module's doc), with
@@ -331,10 +365,6 @@ def complete_lines(evidence: Evidence, surface: HullSurface, detector: str, size
             & (np.mean(distance > NOVELTY * size, axis=1) >= 0.5))
     candidates, count = candidates[keep], count[keep]
     if len(candidates):
-        not_contour = contour_mask(samples_along(candidates).reshape(-1, 3), surface, detector,
-                                   config.contour_max_cosine, config.completion_contour_share,
-                                   config.contour_probe_cells)
-        if not_contour is not None:
-            keep = not_contour.reshape(-1, SAMPLES).mean(axis=1) >= 0.5
-            candidates, count = candidates[keep], count[keep]
+        keep = ~on_contours(samples_along(candidates), surface, detector, config)
+        candidates, count = candidates[keep], count[keep]
     return candidates[suppress(candidates, np.lexsort((-_lengths(candidates), -count)), NOVELTY * size)]

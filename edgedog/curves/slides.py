@@ -46,7 +46,7 @@ from scipy.spatial import cKDTree
 from edgedog.curves import completion, sweep
 from edgedog.curves.completion import NOVELTY, Evidence, ViewEvidence
 from edgedog.curves.config import ExtractConfig
-from edgedog.curves.contours import DRAWN_VALUE, HullSurface, contour_mask
+from edgedog.curves.contours import DRAWN_VALUE, HullSurface
 
 MIN_LENGTH = 0.05
 """Shortest fitted line that is slid or gives a direction, of the scene size: a shorter one's
@@ -77,13 +77,11 @@ CLEAR_SHARE = 0.8
 points."""
 RIDGE_SAMPLES = 24
 """Points along a line where `ridge_drawn` reads the maps."""
-RIDGE_REACH = 3
-"""Pixels across a line's projection where `ridge_drawn` looks for the map's ridge."""
 RIDGE_NEAR = 1
 """... and within this of the projection the ridge must be."""
 RIDGE_SHARE = 0.8
 """The map's value near the projection is a ridge where it is this share of the largest within
-RIDGE_REACH."""
+`completion.RIDGE_REACH` px."""
 DRAWN_COVER = 0.5
 """A view draws a line where this share of its points lies on a ridge (`ridge_drawn`)."""
 MIN_UNDRAWN = 2
@@ -173,26 +171,19 @@ def slides(lines: np.ndarray, size: float) -> list[SlidLine]:
 def ridge_drawn(views: list[ViewEvidence], segment: np.ndarray) -> np.ndarray:
     """(V,) whether each view draws a segment (2, 3) on the ridge of its map: on `DRAWN_COVER` of
     `RIDGE_SAMPLES` points along it, the map's largest value within `RIDGE_NEAR` px across its
-    projection is at least `DRAWN_VALUE` and within 80 % of the largest within `RIDGE_REACH` px.
-    A line beside a drawn edge (a few pixels off it, on the flank of its band) is not drawn.
-    False where the segment leaves the image or projects shorter than 15 px."""
+    projection is at least `DRAWN_VALUE` and `RIDGE_SHARE` of the largest within
+    `completion.RIDGE_REACH` px. A line beside a drawn edge (a few pixels off it, on the flank of
+    its band) is not drawn. False where the segment leaves the image or projects shorter than
+    15 px."""
     points = completion.samples_along(segment[None], RIDGE_SAMPLES)[0]
-    offsets = np.arange(-RIDGE_REACH, RIDGE_REACH + 1)
+    reach = completion.RIDGE_REACH
     drawn = np.zeros(len(views), bool)
     for k, view in enumerate(views):
-        camera = view.camera
-        uv, depth = camera.project(points)
-        along = uv[-1] - uv[0]
-        length = np.linalg.norm(along)
-        if not (np.all(depth > 0) and length >= 15):
+        line = completion.across_line(view, points)
+        if not (line.inside and np.linalg.norm(line.uv[-1] - line.uv[0]) >= 15):
             continue
-        across = np.array([-along[1], along[0]]) / length
-        probes = np.rint(uv[:, None, :] + offsets[None, :, None] * across).astype(np.int64)
-        if (probes < 0).any() or (probes >= [camera.width, camera.height]).any():
-            continue
-        values = view.edge_map[probes[..., 1], probes[..., 0]]
-        centre = values[:, RIDGE_REACH - RIDGE_NEAR:RIDGE_REACH + RIDGE_NEAR + 1].max(axis=1)
-        on_ridge = (centre >= DRAWN_VALUE) & (centre >= RIDGE_SHARE * values.max(axis=1))
+        centre = line.values[:, reach - RIDGE_NEAR:reach + RIDGE_NEAR + 1].max(axis=1)
+        on_ridge = (centre >= DRAWN_VALUE) & (centre >= RIDGE_SHARE * line.values.max(axis=1))
         drawn[k] = on_ridge.mean() >= DRAWN_COVER
     return drawn
 
@@ -209,15 +200,6 @@ def seen_undrawn(segment: np.ndarray, evidence: Evidence, surface: HullSurface) 
     drawn = ridge_drawn(evidence.views, segment)
     undrawn = int((seen & ~drawn).sum())
     return undrawn >= MIN_UNDRAWN and undrawn > int((seen & drawn).sum())
-
-
-def _contour(points: np.ndarray, surface: HullSurface, detector: str, config: ExtractConfig) -> bool:
-    """Whether most of a line's points (M, 3) are on an occluding contour (`contour_mask` at the
-    line completion's `completion_contour_share`): a fillet's or a cylinder's straight contours
-    are drawn by many views, a copy of a line slid onto them too."""
-    not_contour = contour_mask(points, surface, detector, config.contour_max_cosine,
-                               config.completion_contour_share, config.contour_probe_cells)
-    return not_contour is not None and not_contour.mean() < 0.5
 
 
 def complete_slides(lines: np.ndarray, evidence: Evidence, maps: list[sweep.ViewMaps], surface: HullSurface,
@@ -248,7 +230,9 @@ def complete_slides(lines: np.ndarray, evidence: Evidence, maps: list[sweep.View
         if not (drawn(segment).sum() >= MIN_DRAWING and sweep.away(points, existing, AWAY * NOVELTY * size)
                 and sweep.away(points, earlier, AWAY * NOVELTY * size)):
             return False
-        if seen_undrawn(segment, evidence, surface) or _contour(points, surface, detector, config):
+        if seen_undrawn(segment, evidence, surface):
+            return False
+        if completion.on_contours(points[None], surface, detector, config)[0]:
             return False
         added.append(segment)
         earlier = cKDTree(completion.samples_along(np.asarray(added)).reshape(-1, 3))
