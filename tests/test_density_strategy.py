@@ -13,7 +13,7 @@ from edgedog.spacing import edge_directions, redundant
 from edgedog.train.config import TrainConfig, with_settings
 from edgedog.train.model import EdgeModel
 from edgedog.train.optim import Optimizers
-from edgedog.train.strategy import DensityStrategy
+from edgedog.train.strategy import DensityStrategy, primitive_limit
 from edgedog.train.trainer import Trainer
 from tests.helpers.tiny_runs import every_fifth_view, tiny_config
 
@@ -63,12 +63,47 @@ def test_duplication_copies_the_primitives_above_the_threshold():
     assert moved.max() > 0 and moved.max() < 0.05 * 5
 
 
-@pytest.mark.parametrize(("max_primitives", "copied"), [(14, 2), (13, 1), (10, 0)])
-def test_duplication_stays_within_the_budget(max_primitives, copied):
+@pytest.mark.parametrize(("max_primitives", "sources"), [(16, [2, 4, 9]), (14, [2, 4]), (13, [2]), (10, [])])
+def test_duplication_stays_within_the_budget(max_primitives, sources):
+    # With room for fewer than the chosen, the largest gradients are copied (10, 9, 8 at rows
+    # 2, 4, 9: not row 6's 6, though it comes first), in row order.
     before, model, _, events = duplicate(max_primitives)
-    assert events[0]["after"] == len(model) == N + 2 * copied
-    sources = torch.tensor(CHOSEN[:copied] * 2, dtype=torch.long)  # the first chosen rows, as room allows
-    assert torch.equal(model.k_raw.detach()[N:], before.k_raw[sources])
+    assert events[0]["after"] == len(model) == N + 2 * len(sources)
+    rows = torch.tensor(sources * 2, dtype=torch.long)
+    assert torch.equal(model.k_raw.detach()[N:], before.k_raw[rows])
+
+
+def test_the_limit_follows_a_thinned_edge_vote():
+    settings = with_settings(TrainConfig(), {"edge_budget": 2.5, "max_primitives": 10_000}).strategy
+    vote = {"method": "edge-vote", "points": 1808, "spacing": 0.0099}
+    assert primitive_limit(settings, vote) == 4520
+    assert primitive_limit(settings, {**vote, "points": 6000}) == 10_000  # never past max_primitives
+    # Unthinned votes, other starts and a budget of 0 leave max_primitives alone.
+    assert primitive_limit(settings, {**vote, "spacing": 0.0}) == 10_000
+    assert primitive_limit(settings, {"method": "uniform", "points": 1808}) == 10_000
+    off = with_settings(TrainConfig(), {"max_primitives": 10_000}).strategy
+    assert primitive_limit(off, vote) == 10_000
+
+
+def test_a_run_with_an_edge_budget_stays_within_it(builtin_scene_dir, tmp_path):
+    # Duplicating every epoch from a thinned edge vote on the box: the count reaches the budget,
+    # 1.5 times the start, and never passes it; the limit is kept by a resumed run.
+    scene = every_fifth_view(builtin_scene_dir)
+    config = tiny_config(**{"init.method": "edge-vote", "init.vote_spacing": 0.02, "init.count": 30_000,
+                            "duplicate_epochs": (0, 1, 2), "duplicate_threshold": 0.1, "edge_budget": 1.5,
+                            "epochs": 4})
+    trainer = Trainer(scene, config, tmp_path / "run", progress=False)
+    limit = round(1.5 * trainer.initial_count)
+    assert trainer.primitive_limit == limit
+    while trainer.epoch < 2:
+        trainer.step()
+    trainer.save_checkpoint()
+    resumed = Trainer(scene, config, tmp_path / "run", progress=False)
+    assert resumed.primitive_limit == limit
+    while not resumed.done:
+        resumed.step()
+    counts = [e["after"] for e in resumed.events if e["event"] == "duplicate"]
+    assert max(counts) <= limit and limit - max(counts) <= config.strategy.duplicate_copies
 
 
 # --- spacing control (edgedog.spacing): a budget per length of edge

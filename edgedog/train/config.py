@@ -62,6 +62,9 @@ MAX_NEIGHBOURS = 32
 MAX_COPIES = 8
 """Copies of one primitive at one place: EdgeGaussians make 2; the copies share their source's
 parameters, so many more add nothing but noise."""
+MAX_EDGE_BUDGET = 100.0
+"""Primitives per vote spacing of edge (about 10 mm of an ABC object): 100 is one per 0.1 mm,
+far denser than any edge needs; the budget stays under `max_primitives` anyway."""
 MIN_SPACING = 1e-6
 """The spacing control hashes centres into cells of half the spacing: a millionth of a scene unit
 (or of the object's size) is far below any edge detail, and keeps the cell indices small."""
@@ -335,6 +338,11 @@ class StrategySettings(Settings):
     """After each cull the opacity logits are clamped to at most this (EdgeGaussians)."""
     max_primitives: Count = 200_000
     """Duplication never grows the model beyond this."""
+    edge_budget: Annotated[float, Range(0, MAX_EDGE_BUDGET)] = 0.0
+    """Primitives per `init.vote_spacing` of edge that the start draws: with 'edge-vote' and a
+    vote spacing, duplication and splits never grow the model beyond this times the start's count
+    (`primitive_limit`), so that the count follows the length of edge the maps draw, not the
+    duplication's fixed share. 0, or another initialisation: `max_primitives` alone."""
     spacing_epochs: tuple[Epoch, ...] = ()
     """Epochs after which the primitives are held at `spacing` along the edges
     (edgedog.spacing): of primitives closer than `spacing` where the edge runs in similar

@@ -13,7 +13,7 @@ from edgedog.renderer.config import RasterConfig
 from edgedog.renderer.rasterize import RenderOutput, fisher_information
 from edgedog.scenes.camera import Camera
 from edgedog.spacing import edge_directions, redundant, spacing_length, split_offsets, split_pieces
-from edgedog.train.config import MAX_COPIES, TrainConfig
+from edgedog.train.config import MAX_COPIES, StrategySettings, TrainConfig
 from edgedog.train.model import EdgeModel
 from edgedog.train.occlusion import Occlusion, drawn_in_view
 from edgedog.train.optim import Optimizers
@@ -65,6 +65,17 @@ def edge_hit_share(points: np.ndarray, pinholes: list[Camera], edge_masks: list[
     return on_edge / seen.clamp_min(1)
 
 
+def primitive_limit(settings: StrategySettings, init_report: dict) -> int:
+    """The most primitives duplication and splits may grow the model to: `max_primitives`, or
+    with `edge_budget` and an edge-vote start thinned to a spacing (its report's "spacing" > 0)
+    that budget times the start's points, the count that follows the length of edge the maps
+    draw (each point stands for about one spacing of edge)."""
+    thinned = init_report.get("method") == "edge-vote" and init_report.get("spacing", 0) > 0
+    if settings.edge_budget <= 0 or not thinned:
+        return settings.max_primitives
+    return min(settings.max_primitives, round(settings.edge_budget * init_report["points"]))
+
+
 class DensityStrategy:
     """Decides, at the end of each epoch, which primitives to duplicate, cull, space or prune."""
 
@@ -87,11 +98,16 @@ class DensityStrategy:
         state.absgrad += out.absgrad.value[skip:].norm(dim=1)
 
     def at_epoch_end(self, epoch: int, model: EdgeModel, optimizers: Optimizers, state: StrategyState,
-                     views: ViewSet, generator: torch.Generator, keep_ratio: float) -> list[dict]:
-        """Apply the events scheduled after `epoch` (0-based); returns a log entry per event."""
+                     views: ViewSet, generator: torch.Generator, keep_ratio: float,
+                     limit: int | None = None) -> list[dict]:
+        """Apply the events scheduled after `epoch` (0-based); returns a log entry per event.
+
+        `limit`: the most primitives duplication and splits grow the model to
+        (`primitive_limit`; None: `max_primitives`)."""
         c, events = self.settings, []
+        limit = c.max_primitives if limit is None else limit
         if epoch in c.duplicate_epochs:
-            events.append(self._duplicate(model, optimizers, state, generator))
+            events.append(self._duplicate(model, optimizers, state, generator, limit))
         if epoch in c.cull_projection_epochs:
             events.append(self._cull(model, optimizers, state, "projection",
                                      self._edge_hit_share(model, views) < c.cull_projection_below, views))
@@ -103,7 +119,7 @@ class DensityStrategy:
             events.append(self._cull(model, optimizers, state, "opacity", opacity < c.cull_opacity_below,
                                      views))
         if epoch in c.spacing_epochs:
-            events.append(self._space(model, optimizers, state, views))
+            events.append(self._space(model, optimizers, state, views, limit))
         if c.primitive_uncertainty and (epoch + 1) % c.fisher_every == 0 and epoch + 1 < self.epochs:
             events.append(self._fisher_prune(model, optimizers, state, views, keep_ratio))
         for event in events:
@@ -124,13 +140,15 @@ class DensityStrategy:
         optimizers.remap(model, moment_source)
         state.absgrad = torch.zeros(len(model), device=model.device)
 
-    def _duplicate(self, model, optimizers, state, generator) -> dict:
+    def _duplicate(self, model, optimizers, state, generator, limit: int) -> dict:
         grads = state.absgrad
         span = grads.max() - grads.min()
         normalised = (grads - grads.min()) / span if span > 0 else torch.zeros_like(grads)
         chosen = torch.nonzero(normalised > self.settings.duplicate_threshold).squeeze(1)
-        room = max(0, (self.settings.max_primitives - len(model)) // self.settings.duplicate_copies)
-        chosen = chosen[:room]
+        room = max(0, (limit - len(model)) // self.settings.duplicate_copies)
+        if len(chosen) > room:  # the largest gradients first: where the maps are least explained
+            largest = torch.topk(normalised[chosen], room).indices
+            chosen = torch.sort(chosen[largest]).values
         before = len(model)
         copies = chosen.repeat(self.settings.duplicate_copies)
         # Copies keep their source's parameters, start with zero Adam moments, and move by
@@ -185,7 +203,8 @@ class DensityStrategy:
         return edge_hit_share(model.means.detach().double().cpu().numpy(), views.pinholes, views.edge_masks,
                               self._drawn(model, views, self._hidden(model)))
 
-    def _space(self, model: EdgeModel, optimizers: Optimizers, state: StrategyState, views: ViewSet) -> dict:
+    def _space(self, model: EdgeModel, optimizers: Optimizers, state: StrategyState, views: ViewSet,
+               limit: int) -> dict:
         """Hold the primitives at the target spacing along the edges (edgedog.spacing): remove
         the redundant ones, then split the long ones into new primitives (zero Adam moments)."""
         c, before = self.settings, len(model)
@@ -201,20 +220,21 @@ class DensityStrategy:
         self._apply(model, optimizers, state, kept)
         split = 0
         if c.spacing_split and length > 0:
-            split = self._split(model, optimizers, state, length)
+            split = self._split(model, optimizers, state, length, limit)
         return {"event": "spacing", "before": before, "after": len(model), "spacing": round(length, 6),
                 "removed": int(removed.sum()), "split": split}
 
-    def _split(self, model: EdgeModel, optimizers: Optimizers, state: StrategyState, length: float) -> int:
+    def _split(self, model: EdgeModel, optimizers: Optimizers, state: StrategyState, length: float,
+               limit: int) -> int:
         """Cut each elongated primitive whose largest scale exceeds `length` into pieces along its
-        major axis (`split_pieces`, within `max_primitives`); returns how many were cut. The pieces are new
+        major axis (`split_pieces`, within `limit` primitives); returns how many were cut. The pieces are new
         primitives after the others, with their source's parameters but the centre moved along
         the axis and the largest scale divided by the pieces."""
         with torch.no_grad():
             log_scales = model.log_scales.detach()
             largest, major = log_scales.max(dim=1)
             axes = model.major_axes().detach()
-        room = max(0, self.settings.max_primitives - len(model))
+        room = max(0, limit - len(model))
         pieces = split_pieces(log_scales.exp().double().cpu().numpy(), length, MAX_COPIES, room)
         cut = torch.from_numpy(pieces > 1).to(model.device)
         if not bool(cut.any()):

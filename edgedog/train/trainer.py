@@ -41,7 +41,7 @@ from edgedog.train.occlusion import drawn_in_view, scene_occlusion
 from edgedog.train.optim import Optimizers
 from edgedog.train.readback import EpochLosses, zero_non_finite
 from edgedog.train.resolution import ViewSet, coarser
-from edgedog.train.strategy import DensityStrategy, StrategyState
+from edgedog.train.strategy import DensityStrategy, StrategyState, primitive_limit
 from edgedog.train.targets import (
     LearnedShift,
     corrects_silhouettes,
@@ -256,6 +256,7 @@ class Trainer:
         self.optimizers = Optimizers(self.model, c)
         self.state = self.strategy.initial_state(len(self.model), self.device)
         self.initial_count = len(self.model)
+        self.primitive_limit = primitive_limit(c.strategy, self.init_report)
 
     def _bind_lower(self) -> None:
         """Lower layers are fixed, or fine-tuned by their own Adams at the scaled rates."""
@@ -417,7 +418,7 @@ class Trainer:
         centres = None if self.convergence is None else self.model.means.detach().clone()
         with record_function("density control"):
             events = self.strategy.at_epoch_end(epoch, self.model, self.optimizers, self.state, self.views,
-                                                self.generator, keep_ratio)
+                                                self.generator, keep_ratio, self.primitive_limit)
         self.events += events
         self._neighbours = None  # the events renumber the primitives
         entry = {"epoch": epoch, "loss": self._epoch_losses.mean(),
@@ -542,6 +543,7 @@ class Trainer:
         self.history, self.events = saved["history"], saved["events"]
         self.seconds, self._bad_gradients = float(saved["seconds"]), int(saved["bad_gradients"])
         self.init_report, self.initial_count = saved["init_report"], int(saved["initial_count"])
+        self.primitive_limit = primitive_limit(self.config.strategy, self.init_report)
         if self.convergence is not None:  # the same config: a checkpoint written with the test on
             self.convergence = Convergence.from_state_dict(saved["convergence"], self.device)
             self.stopped = saved["stopped"]
@@ -564,6 +566,7 @@ class Trainer:
             "scene": str(self.scene.root), "detector": self.detector, "config": to_dict(self.config),
             "skipped_views": {str(path): problem for path, problem in self.scene.skipped.items()},
             "init": self.init_report, "initial_primitives": self.initial_count,
+            "primitive_limit": self.primitive_limit,
             "final_primitives": len(self.model), "lower_primitives": len(self.lower),
             "map_shift_px": self.shift_px(),
             "silhouette_correction": self.silhouette,
