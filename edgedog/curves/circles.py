@@ -136,8 +136,7 @@ def complete_circles(circles: list[Circle], evidence: Evidence, maps: list[sweep
         value = np.where(scores.outside, 0.0, scores.value)
         strong = (scores.cover >= config.circle_cover) & (scores.cover_two >= config.circle_views_cover)
         for index in sweep.peaks(value):
-            window = offsets[index] + np.arange(-sweep.PLACE_STEPS, sweep.PLACE_STEPS + 1) * step
-            found = circle.moved(sweep.placed(circle, evidence, window, maps))
+            found = circle.moved(sweep.placed(circle, evidence, offsets[index], step, maps))
             points = found.points()
             if (strong[index] and sweep.away(points, existing, NOVELTY * size)
                     and sweep.away(points, earlier, 2 * NOVELTY * size)):

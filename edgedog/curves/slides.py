@@ -249,8 +249,7 @@ def complete_slides(lines: np.ndarray, evidence: Evidence, maps: list[sweep.View
         for index in sweep.peaks(value):
             if not strong[index]:
                 continue
-            window = offsets[index] + np.arange(-sweep.PLACE_STEPS, sweep.PLACE_STEPS + 1) * step
-            found = line.moved(sweep.placed(line, evidence, window, maps))
+            found = line.moved(sweep.placed(line, evidence, offsets[index], step, maps))
             drawing = drawn(found)
             if drawing.sum() < MIN_DRAWING:
                 continue

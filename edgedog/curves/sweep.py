@@ -147,15 +147,17 @@ def offset_scores(curve: Swept, evidence: Evidence, offsets: np.ndarray, maps: l
     return OffsetScores(values.sum(axis=1), drawn.mean(axis=1), two, outside)
 
 
-def placed(curve: Swept, evidence: Evidence, offsets: np.ndarray, maps: list[ViewMaps]) -> float:
-    """The offset among `offsets` (T,), a window around a peak of the (plateau) score, where the
-    views' maps themselves peak (`offset_scores` with `sharp`), refined between steps: the
-    middle of the thick lines the views draw, not the step at which the score happens to peak
-    on its plateau (a circle's copy landed 2 to 10 mm off a floor that way)."""
+def placed(curve: Swept, evidence: Evidence, peak: float, step: float, maps: list[ViewMaps]) -> float:
+    """The offset within `PLACE_STEPS` steps of `step` either way of `peak` (an offset where the
+    plateau score peaks) where the views' maps themselves peak (`offset_scores` with `sharp`),
+    refined between steps: the middle of the thick lines the views draw, not the step at which
+    the score happens to peak on its plateau (a circle's copy landed 2 to 10 mm off a floor that
+    way)."""
+    offsets = peak + np.arange(-PLACE_STEPS, PLACE_STEPS + 1) * step
     value = offset_scores(curve, evidence, offsets, maps, sharp=True).value
     index = int(np.argmax(value))
     if 0 < index < len(offsets) - 1:
-        return float(offsets[index] + vertex(value, index) * (offsets[1] - offsets[0]))
+        return float(offsets[index] + vertex(value, index) * step)
     return float(offsets[index])
 
 

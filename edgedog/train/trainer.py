@@ -256,7 +256,6 @@ class Trainer:
         self.optimizers = Optimizers(self.model, c)
         self.state = self.strategy.initial_state(len(self.model), self.device)
         self.initial_count = len(self.model)
-        self.primitive_limit = primitive_limit(c.strategy, self.init_report)
 
     def _bind_lower(self) -> None:
         """Lower layers are fixed, or fine-tuned by their own Adams at the scaled rates."""
@@ -284,6 +283,12 @@ class Trainer:
     @property
     def epoch(self) -> int:
         return self.step_index // len(self.cameras)
+
+    @property
+    def primitive_limit(self) -> int:
+        """The most primitives density control may grow the model to (`strategy.primitive_limit`
+        of the run's start)."""
+        return primitive_limit(self.config.strategy, self.init_report)
 
     @property
     def total_steps(self) -> int:
@@ -543,7 +548,6 @@ class Trainer:
         self.history, self.events = saved["history"], saved["events"]
         self.seconds, self._bad_gradients = float(saved["seconds"]), int(saved["bad_gradients"])
         self.init_report, self.initial_count = saved["init_report"], int(saved["initial_count"])
-        self.primitive_limit = primitive_limit(self.config.strategy, self.init_report)
         if self.convergence is not None:  # the same config: a checkpoint written with the test on
             self.convergence = Convergence.from_state_dict(saved["convergence"], self.device)
             self.stopped = saved["stopped"]
