@@ -1,10 +1,11 @@
 // The one translation unit that includes torch/extension.h. It registers the rasterizer's
 // stages as ops of torch's dispatcher (library `edgedog`, schemas below), with these functions
-// as their kernels on the CPU and, in a CUDA build (EDGEDOG_WITH_CUDA), on CUDA: each checks
+// as their kernels on the CPU and, in a CUDA build (EDGEDOG_WITH_CUDA), on CUDA (and the
+// training step's fused projection loss, `edge_loss`, on the CPU alone): each checks
 // that its tensors share one device, allocates the outputs there and calls the plain-C++
 // kernels of csrc/ or the CUDA launchers of cuda_kernels.h. renderer/ops.py calls the ops and
-// owns their autograd. The Python module `edgedog.renderer._C` itself only reports build facts
-// and sets the allocator up.
+// owns their autograd (edgedog/train/losses.py the loss's). The Python module
+// `edgedog.renderer._C` itself only reports build facts and sets the allocator up.
 #include <torch/extension.h>
 
 #include <malloc.h>
@@ -16,6 +17,7 @@
 
 #include "build_info.h"
 #include "constants.h"
+#include "edge_loss.h"
 #include "project.h"
 #include "rasterize.h"
 #include "tiles.h"
@@ -341,6 +343,44 @@ Tensor rasterize_fisher(const Tensor& means2d, const Tensor& conics, const Tenso
   return fisher;
 }
 
+std::tuple<Tensor, Tensor> edge_loss(const Tensor& render, const Tensor& target,
+                                     const std::optional<Tensor>& depth, int64_t weighting,
+                                     const std::optional<Tensor>& sample) {
+  const auto device = render.device();
+  TORCH_CHECK(device.is_cpu(), "edge_loss has a CPU kernel only (other devices: losses.py's torch path)");
+  check_float(render, "render", {-1, -1}, device);
+  const int64_t height = render.size(0), width = render.size(1);
+  check_float(target, "target", {height, width}, device);
+  TORCH_CHECK(weighting >= 0 && weighting <= int64_t(edgedog::Weighting::kExp), "unknown weighting ",
+              weighting);
+  Tensor weight;
+  if (depth.has_value()) {
+    check_float(*depth, "depth", {height, width}, device);
+    weight = torch::empty_like(render);
+    edgedog::uncertainty_weight(depth->data_ptr<float>(), height, width, edgedog::Weighting(weighting),
+                                weight.data_ptr<float>());
+  }
+  const int64_t* sample_ptr = nullptr;
+  int64_t sample_count = 0;
+  if (sample.has_value()) {
+    check_device(*sample, "sample", device);
+    TORCH_CHECK(sample->scalar_type() == torch::kInt64 && sample->dim() == 1 && sample->is_contiguous(),
+                "sample must be a contiguous 1-D int64 tensor");
+    sample_count = sample->size(0);
+    sample_ptr = sample->data_ptr<int64_t>();
+    if (sample_count > 0) {
+      const auto [lo, hi] = torch::aminmax(*sample);
+      TORCH_CHECK(lo.item<int64_t>() >= 0 && hi.item<int64_t>() < height * width,
+                  "sample index out of range");
+    }
+  }
+  Tensor grad = torch::empty_like(render);
+  const double loss = edgedog::weighted_l1(render.data_ptr<float>(), target.data_ptr<float>(),
+                                           weight.defined() ? weight.data_ptr<float>() : nullptr,
+                                           height * width, sample_ptr, sample_count, grad.data_ptr<float>());
+  return {torch::scalar_tensor(loss, render.options()), grad};
+}
+
 }  // namespace
 
 // The schemas: one argument order for every device's kernels and for the Python wrappers.
@@ -370,6 +410,9 @@ TORCH_LIBRARY(edgedog, m) {
       "Tensor g_conics, Tensor g_depths, Tensor g_opacity, Tensor g_a, Tensor g_t, Tensor g_colors, "
       "Tensor absgrad)");
   m.def("rasterize_fisher(" EDGEDOG_SPLATS ", Tensor final_T, Tensor last) -> Tensor fisher");
+  m.def(
+      "edge_loss(Tensor render, Tensor target, Tensor? depth, int weighting, Tensor? sample)"
+      " -> (Tensor loss, Tensor grad_render)");
 }
 
 #undef EDGEDOG_SPLATS
@@ -384,7 +427,10 @@ TORCH_LIBRARY(edgedog, m) {
   m.impl("rasterize_backward", &rasterize_backward); \
   m.impl("rasterize_fisher", &rasterize_fisher)
 
-TORCH_LIBRARY_IMPL(edgedog, CPU, m) { EDGEDOG_IMPLS(m); }
+TORCH_LIBRARY_IMPL(edgedog, CPU, m) {
+  EDGEDOG_IMPLS(m);
+  m.impl("edge_loss", &edge_loss);  // the CPU's only: a GPU runs the loss as torch ops
+}
 
 #ifdef EDGEDOG_WITH_CUDA
 TORCH_LIBRARY_IMPL(edgedog, CUDA, m) { EDGEDOG_IMPLS(m); }

@@ -199,8 +199,24 @@ def test_the_sampled_loss_takes_the_edges_and_as_many_distinct_background_pixels
     assert not flat[background].any()
     # The same draw as picking from the list of background pixels (EdgeGaussians' way).
     listed = torch.nonzero(~flat).squeeze(1)
-    pick = torch.randperm(len(listed), generator=torch.Generator().manual_seed(7))[:count]
+    pick = losses.distinct_draw(count, len(listed), torch.Generator().manual_seed(7))
     assert torch.equal(background, listed[pick])
+
+
+@pytest.mark.parametrize("count, total",
+                         [(0, 0), (0, 9), (3, 200), (40, 1000), (50, 200), (199, 200), (200, 200)])
+def test_a_distinct_draw_is_a_uniform_subset(count, total):
+    """Small shares are drawn with replacement and their repeats dropped, large ones permuted:
+    either way `count` distinct values of [0, total), each as likely (within 5 sigma)."""
+    generator, draws = torch.Generator().manual_seed(11), 3000
+    counts = torch.zeros(total)
+    for _ in range(draws):
+        drawn = losses.distinct_draw(count, total, generator)
+        assert drawn.dtype == torch.int64 and len(drawn) == count == len(set(drawn.tolist()))
+        counts[drawn] += 1
+    if total:
+        p = count / total
+        assert torch.all((counts / draws - p).abs() <= 5 * (p * (1 - p) / draws) ** 0.5)
 
 
 def test_one_adam_over_the_groups_steps_each_as_its_own_adam_would():

@@ -1,5 +1,6 @@
 """`edgedog bench raster`: speed of the rasterizer's kernels (C++ on the CPU, or CUDA) against
-the torch reference (on the CPU).
+the torch reference (on the CPU), and of a training step's loss on each view's render (the
+fused op on the CPU, `losses.edge_loss`) against its torch functions.
 
 The scene is ABC-like: thin primitives laid along the straight edges and circles of a CAD part
 in [0, 1]^3 (a box with a circular hole and a boss), viewed from the ABC-NEF camera sphere.
@@ -22,6 +23,7 @@ from edgedog.renderer.ops import device_name, resolve_device
 from edgedog.renderer.primitives import Primitives, RasterCamera
 from edgedog.renderer.rasterize import RenderOutput, fisher_information, rasterize
 from edgedog.synthetic.cameras import orbit_cameras
+from edgedog.train import losses
 
 MAJOR_SCALE = 0.004  # 4 mm along the curve
 MINOR_SCALE = 0.0008  # 0.8 mm across: thin edge primitives
@@ -140,6 +142,32 @@ def _time_view(
     return forward, _clock(device) - start, out
 
 
+def _time_loss(out: RenderOutput, reference: bool, generator: torch.Generator) -> tuple[float, float]:
+    """Seconds of a training step's loss on a render, forward and backward: over every pixel and
+    over a sampled step's pixels (`edge_and_background_sample`), 'exp_neg' weighting. The target
+    is the render's own edge pixels shifted by one pixel; `reference`: the torch functions on
+    the host instead of `losses.edge_loss` on the render's device."""
+    device = torch.device("cpu") if reference else out.image.device
+    render = out.image.detach().squeeze(-1).to(device)
+    depth = out.depth.detach().to(device)
+    target = torch.roll((render > 0.1).float(), 1, dims=1)
+    edges = losses.edge_pixels(target > 0)
+    seconds = []
+    for sampled in (False, True):
+        sample = (losses.edge_and_background_sample(edges, target.numel(), generator).to(device)
+                  if sampled else None)
+        leaf = render.clone().requires_grad_()
+        start = _clock(device)
+        if reference:
+            weight = losses.uncertainty_weight(losses.depth_uncertainty(depth), "exp_neg")
+            loss = losses.projection_loss(leaf, target, weight, sample)
+        else:
+            loss = losses.edge_loss(leaf, target, depth, "exp_neg", sample)
+        loss.backward()
+        seconds.append(_clock(device) - start)
+    return seconds[0], seconds[1]
+
+
 def run(cfg: RasterBenchConfig) -> dict:
     """Time the kernels on `views` views and the reference on `reference_views`; JSON-ready."""
     device = resolve_device(cfg.device)
@@ -150,12 +178,15 @@ def run(cfg: RasterBenchConfig) -> dict:
     generator = torch.Generator().manual_seed(cfg.seed)
     _time_view(prims, cameras[0], config, generator)  # warm-up: first-touch allocations
     forward, backward, evaluations, visible = [], [], 0, []
+    loss, ref_loss = [], []  # (full, sampled) seconds per view
     for camera in cameras:
         f, b, out = _time_view(prims, camera, config, generator)
         forward.append(f)
         backward.append(b)
         evaluations += _evaluations(out, prims, camera, config)
         visible.append(int(out.visible.sum()))
+        loss.append(_time_loss(out, False, generator))
+        ref_loss.append(_time_loss(out, True, generator))
     start = _clock(device)
     fisher_information(prims, cameras, config)
     fisher = (_clock(device) - start) / len(cameras)
@@ -178,12 +209,16 @@ def run(cfg: RasterBenchConfig) -> dict:
         "forward_backward_ms": ms(np.add(forward, backward)),
         "fisher_ms": ms(fisher),
         "forward_backward_ms_p90": round(1000 * float(np.percentile(np.add(forward, backward), 90)), 3),
+        "loss_ms": ms([full for full, _ in loss]),
+        "sampled_loss_ms": ms([sampled for _, sampled in loss]),
     }
     reference = {
         "forward_ms": ms(ref_forward),
         "backward_ms": ms(ref_backward),
         "forward_backward_ms": ms(np.add(ref_forward, ref_backward)),
         "fisher_ms": ms(ref_fisher),
+        "loss_ms": ms([full for full, _ in ref_loss]),
+        "sampled_loss_ms": ms([sampled for _, sampled in ref_loss]),
     }
     return {
         "benchmark": "raster",
@@ -200,7 +235,8 @@ def run(cfg: RasterBenchConfig) -> dict:
         "torch_reference": reference,
         "speedup": {
             key: round(reference[key] / kernels[key], 1)
-            for key in ("forward_ms", "backward_ms", "forward_backward_ms", "fisher_ms")
+            for key in ("forward_ms", "backward_ms", "forward_backward_ms", "fisher_ms", "loss_ms",
+                        "sampled_loss_ms")
         },
         "primitive_pixel_evaluations_per_s": round(evaluations / max(sum(forward), 1e-9)),
         "peak_rss_mib": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1),
@@ -214,7 +250,9 @@ def summary(result: dict) -> str:
         f"{ours['backward_ms']} ms, Fisher {ours['fisher_ms']} ms per view; torch reference on the cpu: "
         f"forward {ref['forward_ms']} ms, "
         f"backward {ref['backward_ms']} ms "
-        f"(speed-up x{speed['forward_backward_ms']} forward+backward, x{speed['fisher_ms']} Fisher)"
+        f"(speed-up x{speed['forward_backward_ms']} forward+backward, x{speed['fisher_ms']} Fisher); "
+        f"a step's loss with its backward {ours['loss_ms']} ms, sampled {ours['sampled_loss_ms']} ms "
+        f"(torch functions on the cpu: {ref['loss_ms']}, {ref['sampled_loss_ms']} ms)"
     )
 
 

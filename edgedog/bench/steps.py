@@ -26,9 +26,10 @@ from edgedog.errors import ConfigError
 from edgedog.files import atomic_write_bytes, atomic_write_json
 from edgedog.train.config import TrainConfig
 
-STAGES = ("rasterize", "pixel uncertainty", "loss", "backward", "density statistics", "adam",
-          "orientation losses", "density control", "checkpoint")
-"""The labels of `Trainer.step`, in the order a step runs them."""
+STAGES = ("rasterize", "loss", "backward", "density statistics", "adam", "orientation losses",
+          "density control", "checkpoint")
+"""The labels of `Trainer.step`, in the order a step runs them ('loss' includes the pixel
+uncertainty)."""
 STEP_PREFIX = "ProfilerStep"
 """torch.profiler's label of each recorded step ("ProfilerStep*" in its averages)."""
 TOP_OPERATORS = 15

@@ -134,10 +134,10 @@ def _add_steps(kinds) -> None:
         "steps", help="where a training step's time goes: time per step of each stage of the trainer",
         description="Train one run in OUT/run (a new folder) as edgedog train does, recording evenly "
                     "spaced windows of steps with torch.profiler; write OUT/steps.json and OUT/steps.md: "
-                    "each stage's milliseconds per step (rasterize, pixel uncertainty, loss, backward, "
-                    "Adam, ...), the rest of the step, and the operators with the most time of their own. "
-                    "The profiler slows the recorded steps a little; the run's own time per step is "
-                    "printed beside them.")
+                    "each stage's milliseconds per step (rasterize, loss with the pixel uncertainty, "
+                    "backward, Adam, ...), the rest of the step, and the operators with the most time of "
+                    "their own. The profiler slows the recorded steps a little; the run's own time per "
+                    "step is printed beside them.")
     _add_run_arguments(steps, "scene folder", "a new folder for the run and the tables",
                        "override a training setting (repeatable)")
     steps.add_argument("--windows", type=int, default=10, help="recorded windows, spread over the run")

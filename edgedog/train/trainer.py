@@ -327,10 +327,6 @@ class Trainer:
                     self._hidden = self.occlusion.hidden(primitives.means)
                 primitives = drawn_in_view(primitives, self._hidden[view])
             out = rasterize(primitives, views.cameras[view], self.raster)
-        with record_function("pixel uncertainty"):
-            weight = None
-            if c.pixel_uncertainty:
-                weight = losses.uncertainty_weight(losses.depth_uncertainty(out.depth.detach()), weighting)
         with record_function("loss"):
             sample = None
             # A view without edge pixels has nothing to sample around: its loss stays the full one.
@@ -345,7 +341,8 @@ class Trainer:
                 render = blur_to_profile(render, self.config.maps.profile_sigma / views.factor)
             if self.learned_shift is not None:
                 target = self.learned_shift.target(target, epoch, views.factor)
-            loss = losses.projection_loss(render, target, weight, sample)
+            depth = out.depth.detach() if c.pixel_uncertainty else None  # Up, the pixel uncertainty, from it
+            loss = losses.edge_loss(render, target, depth, weighting, sample)
         with record_function("backward"):
             loss.backward()
         with record_function("density statistics"):
