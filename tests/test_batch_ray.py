@@ -1,7 +1,7 @@
 """`edgedog batch` on a local Ray cluster of 2 CPUs (`ray start --head`, two worker processes): one
 worker is killed mid-run, Ray runs its task again, the run resumes from its checkpoint, and the
 tables and every run's primitives are those of the same suite run one run after another without
-Ray. A rerun trains nothing."""
+Ray; every run has a worker process of its own. A rerun trains nothing."""
 
 from __future__ import annotations
 
@@ -69,22 +69,35 @@ def ray_cluster(tmp_path):
 
 class WorkerKiller(threading.Thread):
     """Kills, once, the Ray worker executing a run of `out` that has a checkpoint and no log.json
-    yet (the pid in its folder's lock), with SIGKILL; `killed` is then (run name, pid)."""
+    yet (the pid in its folder's lock), with SIGKILL; `killed` is then (run name, pid). Until
+    stopped, records the Ray worker of every run it sees locked: `workers` {run name: pids}."""
 
     def __init__(self, out: Path):
         super().__init__(daemon=True)
         self.out, self.killed, self.stop = out, None, threading.Event()
+        self.workers: dict[str, set[int]] = {}
 
     def run(self) -> None:
-        while not self.stop.is_set() and self.killed is None:
-            for checkpoint in sorted(self.out.glob("*/checkpoint.pt")):
-                run = checkpoint.parent
-                pid = int((run / LOCK_FILE).read_text().strip() or 0)
-                if not (run / "log.json").exists() and pid and "ray::" in _command_line(pid):
+        while not self.stop.is_set():
+            for lock in sorted(self.out.glob(f"*/{LOCK_FILE}")):
+                run = lock.parent
+                pid = _lock_pid(lock)
+                if not pid or "ray::" not in _command_line(pid):
+                    continue
+                self.workers.setdefault(run.name, set()).add(pid)
+                if (self.killed is None and (run / "checkpoint.pt").exists()
+                        and not (run / "log.json").exists()):
                     os.kill(pid, signal.SIGKILL)
                     self.killed = (run.name, pid)
-                    break
             time.sleep(0.02)
+
+
+def _lock_pid(lock: Path) -> int:
+    """The pid in a run folder's lock (0: gone or not written yet)."""
+    try:
+        return int(lock.read_text().strip() or 0)
+    except (OSError, ValueError):
+        return 0
 
 
 def _command_line(pid: int) -> str:
@@ -128,6 +141,11 @@ def test_a_killed_worker_is_retried_and_the_batch_matches_a_sequential_one(tmp_p
     killed_run = killer.killed[0]
     assert f"{killed_run}: resume;" in result.stdout  # the retried task found the checkpoint
     assert "4 runs in" in result.stdout and "(3 new, 1 resume, 0 finished, 0 skipped)" in result.stdout
+    # Every run in a worker process of its own (Ray's max_calls=1): a worker that trained one run
+    # does not carry its memory into the next.
+    seen = list(killer.workers.values())
+    assert len(seen) >= 3, killer.workers
+    assert all(a.isdisjoint(b) for i, a in enumerate(seen) for b in seen[i + 1:]), killer.workers
 
     tables = json.loads((out / "batch.json").read_text())
     reference = json.loads((tmp_path / "sequential" / "batch.json").read_text())
