@@ -9,11 +9,6 @@ from edgedog.train import losses
 from edgedog.train.losses import WEIGHTINGS
 
 
-def reference(render, target, depth, weighting, sample=None):
-    weight = None if depth is None else losses.uncertainty_weight(losses.depth_uncertainty(depth), weighting)
-    return losses.projection_loss(render, target, weight, sample)
-
-
 def inputs(seed, height=37, width=53):
     g = torch.Generator().manual_seed(seed)
     render = torch.rand(height, width, generator=g)
@@ -26,7 +21,7 @@ def inputs(seed, height=37, width=53):
 def both(render, target, depth, weighting, sample=None, target_grad=False):
     """(loss, d render, d target) of the fused loss and of the reference."""
     results = []
-    for loss_of in (losses.edge_loss, reference):
+    for loss_of in (losses.edge_loss, losses.edge_loss_reference):
         r = render.clone().requires_grad_()
         t = target.clone().requires_grad_(target_grad)
         loss = loss_of(r, t, depth, weighting, sample)

@@ -158,12 +158,8 @@ def _time_loss(out: RenderOutput, reference: bool, generator: torch.Generator) -
                   if sampled else None)
         leaf = render.clone().requires_grad_()
         start = _clock(device)
-        if reference:
-            weight = losses.uncertainty_weight(losses.depth_uncertainty(depth), "exp_neg")
-            loss = losses.projection_loss(leaf, target, weight, sample)
-        else:
-            loss = losses.edge_loss(leaf, target, depth, "exp_neg", sample)
-        loss.backward()
+        loss_of = losses.edge_loss_reference if reference else losses.edge_loss
+        loss_of(leaf, target, depth, "exp_neg", sample).backward()
         seconds.append(_clock(device) - start)
     return seconds[0], seconds[1]
 

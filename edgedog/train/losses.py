@@ -74,6 +74,12 @@ def edge_loss(render: torch.Tensor, target: torch.Tensor, depth: torch.Tensor | 
     """
     if render.device.type == "cpu" and "cpu" in kernel_devices():
         return _FusedEdgeLoss.apply(render, target, depth, WEIGHTINGS.index(weighting), sample)
+    return edge_loss_reference(render, target, depth, weighting, sample)
+
+
+def edge_loss_reference(render: torch.Tensor, target: torch.Tensor, depth: torch.Tensor | None,
+                        weighting: str, sample: torch.Tensor | None = None) -> torch.Tensor:
+    """`edge_loss` by the torch functions, on any device (what the fused op is checked against)."""
     weight = None if depth is None else uncertainty_weight(depth_uncertainty(depth), weighting)
     return projection_loss(render, target, weight, sample)
 

@@ -341,7 +341,7 @@ class Trainer:
                 render = blur_to_profile(render, self.config.maps.profile_sigma / views.factor)
             if self.learned_shift is not None:
                 target = self.learned_shift.target(target, epoch, views.factor)
-            depth = out.depth.detach() if c.pixel_uncertainty else None  # Up, the pixel uncertainty, from it
+            depth = out.depth.detach() if c.pixel_uncertainty else None  # the pixel uncertainty's source
             loss = losses.edge_loss(render, target, depth, weighting, sample)
         with record_function("backward"):
             loss.backward()
