@@ -128,6 +128,12 @@ def test_a_settled_coarse_stage_ends_early(builtin_scene_dir, tmp_path):
     assert [h["epoch"] for h in log["history"]] == [0, 1, 2, 3, 6, 7] and log["stopped"] is None
     assert {"event": "converged", "ended": "coarse stage", "skipped_to": 6, "epoch": 3} in log["events"]
     assert trained_to_end(log, 8)
+    # Not before coarse_stop_from_epoch: settled from epoch 3 on, it ends after epoch 4.
+    config = stop_config(stop="coarse", coarse_downscale=2, fine_from_epoch=6, coarse_stop_from_epoch=4,
+                         **FROZEN)
+    later = Trainer(scene, config, tmp_path / "later", progress=False)
+    later.run()
+    assert [h["epoch"] for h in later.history] == [0, 1, 2, 3, 4, 6, 7]
     # 'both': then the fine stage settles too (from epoch 9 on, of 12), and the run ends from
     # stop_from_epoch on (which the coarse stage does not wait for).
     config = stop_config(stop="both", epochs=12, coarse_downscale=2, fine_from_epoch=6, stop_from_epoch=10,

@@ -242,8 +242,11 @@ class ScheduleSettings(Settings):
     stage to its end. 'both': the coarse stage ends when settled, then the run
     when settled again in the fine stage. 'off': every epoch is trained."""
     stop_from_epoch: Epoch = 0
-    """The first epoch at whose end the run may stop ('run', 'both'; a settled coarse stage
-    ends whenever it settles)."""
+    """The first epoch at whose end the run may stop ('run', 'both'); the coarse stage has its
+    own, `coarse_stop_from_epoch`."""
+    coarse_stop_from_epoch: Epoch = 0
+    """The first epoch at whose end a settled coarse stage may end ('coarse', 'both'): the density
+    events scheduled before it (the first opacity cull, its refills) happen in every run."""
     stop_patience: Annotated[int, Range(1, MAX_EPOCHS)] = 3
     """Epochs in a row that must meet `stop_shift` and `stop_loss_change` with no primitives
     added by density control (not scaled with `epochs`)."""
@@ -572,6 +575,24 @@ def preview() -> TrainConfig:
     return with_values(with_epochs(full(), 100), {"maps.downscale": 2})
 
 
+def lean() -> TrainConfig:
+    """`quick` with a primitive budget that follows the edges and a stop when settled, so that
+    the time follows the scene (docs/RESULTS.md, "A run as long as the scene needs: `lean`"):
+
+    - init: the edge vote (`edge-vote`) thinned to one point per 10 mm of drawn edge
+      (`vote_spacing` 0.009 of the cube), each point's view-dependent opacity started toward the
+      views that voted for it (`vote_sight` 4), at most 30,000 points.
+    - strategy.edge_budget 3.5: duplication capped at 3.5 primitives per start point.
+    - schedule.stop 'both' from `coarse_stop_from_epoch` 32 (after the first opacity cull, epoch
+      31): the coarse stage ends when settled, then the run when settled again.
+    - loss.neighbours_every 10: the direction loss's neighbours searched once an epoch.
+    """
+    return with_values(quick(), {"init.method": "edge-vote", "init.vote_spacing": 0.009,
+                                 "init.vote_sight": 4.0, "init.count": 30000, "strategy.edge_budget": 3.5,
+                                 "schedule.stop": "both", "schedule.coarse_stop_from_epoch": 32,
+                                 "loss.neighbours_every": 10})
+
+
 def paper() -> TrainConfig:
     """The EdgeDoG paper's settings: `full` without what edgedog changed or added.
 
@@ -596,6 +617,8 @@ PRESETS = {
     "fast": Preset("full compressed to 200 epochs, at full resolution", fast),
     "quick": Preset("full compressed to 100 epochs, the first 70 at half resolution", quick),
     "preview": Preset("full compressed to 100 epochs at half resolution", preview),
+    "lean": Preset("quick with a primitive budget from the edge vote, stopped when settled (100 epochs "
+                   "at most)", lean),
     "paper": Preset("the EdgeDoG paper's exact settings (w = exp(Up), 2500 uniform points, none of "
                     "our additions), 400 epochs", paper),
 }

@@ -439,8 +439,9 @@ class Trainer:
     def _settle(self, epoch: int, centres: torch.Tensor, loss: float, added: bool) -> dict:
         """The convergence test at the end of `epoch` (edgedog.train.convergence); when it has
         converged, end the run ('run', or 'both' in the fine stage, from
-        `schedule.stop_from_epoch` on: `stopped` is set) or the coarse stage ('coarse', 'both':
-        the next step is the first of `schedule.fine_from_epoch`), with an event saying so.
+        `schedule.stop_from_epoch` on: `stopped` is set) or the coarse stage ('coarse', 'both',
+        from `schedule.coarse_stop_from_epoch` on: the next step is the first of
+        `schedule.fine_from_epoch`), with an event saying so.
         Returns the epoch's record for the history.
 
         Args:
@@ -457,7 +458,7 @@ class Trainer:
         if (s.stop == "run" or (s.stop == "both" and not coarse)) and epoch >= s.stop_from_epoch:
             self.stopped = {"epoch": epoch, "ceiling": s.epochs, "reason": "converged"}
             self.events.append({"event": "converged", "ended": "run", "epoch": epoch})
-        elif coarse and s.stop != "run":
+        elif coarse and s.stop != "run" and epoch >= s.coarse_stop_from_epoch:
             self.events.append({"event": "converged", "ended": "coarse stage",
                                 "skipped_to": s.fine_from_epoch, "epoch": epoch})
             self.step_index = s.fine_from_epoch * len(self.cameras)
