@@ -583,14 +583,16 @@ def lean() -> TrainConfig:
       (`vote_spacing` 0.009 of the cube), each point's view-dependent opacity started toward the
       views that voted for it (`vote_sight` 4), at most 30,000 points.
     - strategy.edge_budget 3.5: duplication capped at 3.5 primitives per start point.
-    - schedule.stop 'both' from `coarse_stop_from_epoch` 32 (after the first opacity cull, epoch
-      31): the coarse stage ends when settled, then the run when settled again.
+    - schedule.stop 'both' from the epoch after `quick`'s first opacity cull (`coarse_stop_from_epoch`
+      32): the coarse stage ends when settled, then the run when settled again.
     - loss.neighbours_every 10: the direction loss's neighbours searched once an epoch.
     """
-    return with_values(quick(), {"init.method": "edge-vote", "init.vote_spacing": 0.009,
-                                 "init.vote_sight": 4.0, "init.count": 30000, "strategy.edge_budget": 3.5,
-                                 "schedule.stop": "both", "schedule.coarse_stop_from_epoch": 32,
-                                 "loss.neighbours_every": 10})
+    base = quick()
+    after_first_cull = min(base.strategy.cull_opacity_epochs) + 1
+    return with_values(base, {"init.method": "edge-vote", "init.vote_spacing": 0.009,
+                              "init.vote_sight": 4.0, "init.count": 30000, "strategy.edge_budget": 3.5,
+                              "schedule.stop": "both", "schedule.coarse_stop_from_epoch": after_first_cull,
+                              "loss.neighbours_every": 10})
 
 
 def paper() -> TrainConfig:
