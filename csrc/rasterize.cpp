@@ -34,18 +34,21 @@ struct ThreadBuffers {
   }
 };
 
-void write_empty_tile(const Tile& tile, const Frame& f, int C, const RasterOutputs& out) {
-  for (int y = 0; y < tile.height; ++y) {
-    const int64_t row = int64_t(tile.y0 + y) * f.width + tile.x0;
-    std::fill(out.alpha + row, out.alpha + row + tile.width, 0.f);
-    std::fill(out.depth + row, out.depth + row + tile.width, 0.f);
-    std::fill(out.final_T + row, out.final_T + row + tile.width, 1.f);
-    std::fill(out.last + row, out.last + row + tile.width, 0);
+// Every pixel as an empty tile leaves it: nothing composited, the background showing. One pass
+// over whole buffers (long contiguous runs) before the tiles: most tiles of an edge render are
+// empty, and filling them row by row costs a library call per 16 pixels.
+void write_background(const Frame& f, int C, const RasterOutputs& out) {
+#pragma omp parallel for schedule(static)
+  for (int y = 0; y < f.height; ++y) {
+    const int64_t row = int64_t(y) * f.width;
+    std::fill(out.alpha + row, out.alpha + row + f.width, 0.f);
+    std::fill(out.depth + row, out.depth + row + f.width, 0.f);
+    std::fill(out.final_T + row, out.final_T + row + f.width, 1.f);
+    std::fill(out.last + row, out.last + row + f.width, 0);
     if (f.background == nullptr) {
-      std::fill(out.image + row * C, out.image + (row + tile.width) * C, 0.f);
+      std::fill(out.image + row * C, out.image + (row + f.width) * C, 0.f);
     } else {
-      for (int x = 0; x < tile.width; ++x)
-        std::copy(f.background, f.background + C, out.image + (row + x) * C);
+      for (int x = 0; x < f.width; ++x) std::copy(f.background, f.background + C, out.image + (row + x) * C);
     }
   }
 }
@@ -55,6 +58,7 @@ void write_empty_tile(const Tile& tile, const Frame& f, int C, const RasterOutpu
 void rasterize_forward(const Splats& s, const Frame& f, const TileView& tiles, const RasterOutputs& out) {
   const int num_tiles = tiles.tiles_x * tiles.tiles_y;
   const int C = s.channels;
+  write_background(f, C, out);
 #pragma omp parallel
   {
     std::vector<float> T(kTilePixels), color(kTilePixels * C), depth(kTilePixels);
@@ -64,10 +68,7 @@ void rasterize_forward(const Splats& s, const Frame& f, const TileView& tiles, c
     for (int index = 0; index < num_tiles; ++index) {
       const Tile tile = splat::tile_at(tiles, index, f);
       const int begin = tiles.offsets[index], end = tiles.offsets[index + 1];
-      if (begin == end) {  // most tiles of an edge render are empty: write the background
-        write_empty_tile(tile, f, C, out);
-        continue;
-      }
+      if (begin == end) continue;  // left as `write_background` wrote it
       std::fill(T.begin(), T.end(), 1.f);
       std::fill(color.begin(), color.end(), 0.f);
       std::fill(depth.begin(), depth.end(), 0.f);
