@@ -44,6 +44,20 @@ def test_prepared_maps_are_floored_then_shifted_and_masked():
     assert np.flatnonzero(mask[10]).tolist() == [20, 21, 22]
 
 
+def test_contrast_normalised_targets_lift_a_faint_edge_to_a_strong_ones_height_and_keep_the_masks():
+    edge_map = np.full((20, 40), 0.1, np.float32)  # shading everywhere
+    edge_map[:, 10], edge_map[:, 30] = 0.6, 1.0  # a faint edge and a strong one
+    plain = tiny_config()
+    (as_drawn,), (plain_mask,), _ = prepare_maps([edge_map], plain, (0.0, 0.0))
+    np.testing.assert_array_equal(as_drawn, edge_map)  # 0: the maps as they are
+    (target,), (mask,), _ = prepare_maps([edge_map], with_settings(plain, {"maps.contrast": 0.5}), (0.0, 0.0))
+    assert target[5, 10] == pytest.approx(1.0) and target[5, 30] == pytest.approx(1.0)
+    assert target[5, 9] == pytest.approx(0.1 / 0.6)  # beside the faint edge: its peak divides
+    assert target[5, 20] == pytest.approx(0.1 / 0.5)  # far from both: lifted by at most 1 / contrast
+    assert target[5, 28] == pytest.approx(0.1)  # beside the strong edge: unchanged
+    np.testing.assert_array_equal(mask, plain_mask)
+
+
 def test_a_faint_thin_line_keeps_its_edge_pixels_when_shifted_by_a_fraction_of_a_pixel():
     columns = np.arange(40, dtype=np.float32)
     line = np.tile(0.65 * np.exp(-2.0 * (columns - 20) ** 2), (30, 1)).astype(np.float32)  # sigma 0.5 px

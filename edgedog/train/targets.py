@@ -3,6 +3,7 @@ pulled onto the object's outline, thinned; and the shift fitted with the primiti
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 import torch
 
@@ -105,11 +106,25 @@ def correct_silhouettes(maps: list[np.ndarray], masks: list[np.ndarray], outline
                               "residual_px": round(residual.offset_px, 3)}
 
 
+CONTRAST_WINDOW = 5
+"""Side in pixels of the neighbourhood whose largest value normalises a map value
+(`maps.contrast`): a thin edge's ridge and the two pixels of falloff on each side."""
+
+
+def contrast_normalised(edge_map: np.ndarray, lowest: float) -> np.ndarray:
+    """(H, W) float32: each value of the (H, W) map divided by the largest in its
+    CONTRAST_WINDOW x CONTRAST_WINDOW neighbourhood, or by `lowest` where that is smaller, capped
+    at 1. A faintly drawn edge's ridge reaches 1 as a strong edge's does; responses weaker than
+    `lowest` (shading, noise) are lifted by at most 1 / `lowest`."""
+    peaks = cv2.dilate(edge_map, np.ones((CONTRAST_WINDOW, CONTRAST_WINDOW), np.uint8))
+    return np.minimum(1.0, edge_map / np.maximum(peaks, lowest)).astype(np.float32)
+
+
 def prepare_maps(maps: list[np.ndarray], config: TrainConfig, shift: tuple[float, float],
                  outlines: list[Outline | None] | None = None
                  ) -> tuple[list[np.ndarray], list[np.ndarray], dict | None]:
-    """Targets and edge masks from (H, W) maps: values under `maps.floor` zeroed, the shift
-    applied, then the silhouettes pulled onto the views' `outlines` when given (see
+    """Targets and edge masks from (H, W) maps: values under `maps.floor` zeroed, contrast
+    normalised (`maps.contrast`, the targets only), the shift applied, then the silhouettes pulled onto the views' `outlines` when given (see
     `corrects_silhouettes`); the masks (map >= maps.edge_threshold, for the sampled loss and the
     projection cull) are taken before the shift and the pull and moved with the maps by
     nearest pixel (interpolation dims thin lines below the threshold); the 'thin' profile is
@@ -118,6 +133,8 @@ def prepare_maps(maps: list[np.ndarray], config: TrainConfig, shift: tuple[float
     if config.maps.floor > 0:
         maps = [np.where(m >= config.maps.floor, m, 0).astype(np.float32) for m in maps]
     masks = [m >= config.maps.edge_threshold for m in maps]
+    if config.maps.contrast > 0:
+        maps = [contrast_normalised(m, config.maps.contrast) for m in maps]
     if shift != (0.0, 0.0):
         maps = [shift_edge_map(m, *shift) for m in maps]
         masks = [shift_edge_map(k, *shift, nearest=True) for k in masks]
