@@ -124,12 +124,12 @@ def prepare_maps(maps: list[np.ndarray], config: TrainConfig, shift: tuple[float
                  outlines: list[Outline | None] | None = None
                  ) -> tuple[list[np.ndarray], list[np.ndarray], dict | None]:
     """Targets and edge masks from (H, W) maps: values under `maps.floor` zeroed, contrast
-    normalised (`maps.contrast`, the targets only), the shift applied, then the silhouettes pulled onto the views' `outlines` when given (see
-    `corrects_silhouettes`); the masks (map >= maps.edge_threshold, for the sampled loss and the
-    projection cull) are taken before the shift and the pull and moved with the maps by
-    nearest pixel (interpolation dims thin lines below the threshold); the 'thin' profile is
-    drawn last, for the targets only. The third value is the silhouette report (None when not
-    corrected)."""
+    normalised (`maps.contrast`, the targets only), the shift applied, then the silhouettes
+    pulled onto the views' `outlines` when given (see `corrects_silhouettes`); the masks (map >=
+    maps.edge_threshold, for the sampled loss and the projection cull) are taken before the
+    contrast, the shift and the pull and moved with the maps by nearest pixel (interpolation dims
+    thin lines below the threshold); the 'thin' profile is drawn last, for the targets only. The
+    third value is the silhouette report (None when not corrected)."""
     if config.maps.floor > 0:
         maps = [np.where(m >= config.maps.floor, m, 0).astype(np.float32) for m in maps]
     masks = [m >= config.maps.edge_threshold for m in maps]
